@@ -1,0 +1,178 @@
+// mpm: the command-line front end. Parses flags, then calls the engine library.
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <omp.h>
+#include <spdlog/spdlog.h>
+
+#include "engine/load_scene.h"
+#include "engine/output.h"
+#include "engine/progress.h"
+#include "engine/run.h"
+#include "engine/simulation.h"
+
+namespace {
+
+constexpr const char* kUsage = R"(mpm - a Material Point Method engine for the CPU
+
+Usage:
+  mpm run SCENE.yaml [--out DIR] [--frames N] [--threads N] [--quiet] [--log-level LEVEL]
+  mpm validate SCENE.yaml     check a scene and print what it would simulate
+  mpm materials               list every registered material and its parameters
+  mpm --help | --version
+
+Options:
+  --out DIR          write frames and report.yaml to DIR (default: the scene's output.directory)
+  --frames N         simulate N frames instead of the scene's simulation.frames
+  --threads N        use N threads (default: all cores)
+  --quiet            print only the final summary line
+  --log-level LEVEL  trace, debug, info, warn, error or off (default info)
+
+Exit codes: 0 success, 1 the run failed (unstable or I/O error), 2 bad scene or usage.
+)";
+
+/// Flags of `mpm run` and `mpm validate`.
+struct Args {
+  std::string command, scene, out, log_level = "info";
+  std::optional<int> frames, threads;
+  bool quiet = false;
+};
+
+[[noreturn]] void usage_error(const std::string& what) {
+  std::fprintf(stderr, "mpm: %s\n(run 'mpm --help' for usage)\n", what.c_str());
+  std::exit(mpm::kExitBadInput);
+}
+
+int parse_count(const std::string& flag, const std::string& value, int min) {
+  try {
+    std::size_t used = 0;
+    const int v = std::stoi(value, &used);
+    if (used == value.size() && v >= min) return v;
+  } catch (const std::exception&) {
+  }
+  usage_error(flag + " expects a whole number >= " + std::to_string(min) + ", got '" + value +
+              "'");
+}
+
+Args parse_args(int argc, char** argv) {
+  Args a;
+  std::vector<std::string> words(argv + 1, argv + argc);
+  for (std::size_t i = 0; i < words.size(); ++i) {
+    const std::string& w = words[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= words.size()) usage_error(w + " needs a value");
+      return words[++i];
+    };
+    if (w == "--help" || w == "-h") {
+      std::fputs(kUsage, stdout);
+      std::exit(mpm::kExitOk);
+    } else if (w == "--version") {
+      std::printf("mpm %s (commit %s)\n", MPM_VERSION, MPM_GIT_COMMIT);
+      std::exit(mpm::kExitOk);
+    } else if (w == "--out") {
+      a.out = value();
+    } else if (w == "--frames") {
+      a.frames = parse_count(w, value(), 0);
+    } else if (w == "--threads") {
+      a.threads = parse_count(w, value(), 1);
+    } else if (w == "--quiet") {
+      a.quiet = true;
+    } else if (w == "--log-level") {
+      a.log_level = value();
+    } else if (!w.empty() && w[0] == '-') {
+      usage_error("unknown option '" + w + "'");
+    } else if (a.command.empty()) {
+      a.command = w;
+    } else if (a.scene.empty()) {
+      a.scene = w;
+    } else {
+      usage_error("unexpected argument '" + w + "'");
+    }
+  }
+  if (a.command.empty()) usage_error("no command given");
+  return a;
+}
+
+int list_materials(const mpm::MaterialRegistry& registry) {
+  for (const mpm::MaterialInfo& m : registry.all()) {
+    std::printf("%s: %s\n  (%s)\n", m.name.c_str(), m.description.c_str(), m.reference.c_str());
+    for (const mpm::ParamSpec& p : m.params) {
+      std::printf("  %-22s %-4s %s", p.name.c_str(), p.unit.c_str(), p.description.c_str());
+      if (p.required) std::printf(" (required)");
+      else std::printf(" (default %g)", p.default_value);
+      std::printf("\n");
+    }
+  }
+  return mpm::kExitOk;
+}
+
+void print_summary(const mpm::Simulation& sim) {
+  for (const mpm::ObjectInfo& o : sim.objects())
+    std::printf("object %-16s %-12s %9zu particles  %g kg\n", o.name.c_str(), o.material.c_str(),
+                o.count, static_cast<double>(o.mass));
+  std::printf("stages:");
+  for (const mpm::Stage& s : sim.stages()) std::printf(" %s", s.name.c_str());
+  std::printf("\n");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Args args = parse_args(argc, argv);
+  const auto level = spdlog::level::from_str(args.log_level);
+  if (level == spdlog::level::off && args.log_level != "off")
+    usage_error("unknown log level '" + args.log_level + "'");
+  spdlog::set_level(args.quiet ? spdlog::level::warn : level);
+  if (args.threads) omp_set_num_threads(*args.threads);
+
+  const mpm::MaterialRegistry registry = mpm::builtin_registry();
+  if (args.command == "materials") return list_materials(registry);
+  if (args.command != "run" && args.command != "validate")
+    usage_error("unknown command '" + args.command + "'");
+  if (args.scene.empty()) usage_error("'mpm " + args.command + "' needs a scene file");
+
+  std::unique_ptr<mpm::Simulation> sim;
+  mpm::SceneDesc scene;
+  try {
+    scene = mpm::load_scene(args.scene, registry);
+    sim = mpm::Simulation::create(scene, registry);
+  } catch (const mpm::SceneError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return mpm::kExitBadInput;
+  }
+  if (args.command == "validate") {
+    std::printf("%s: valid, %zu particles\n", args.scene.c_str(), sim->particles().size());
+    print_summary(*sim);
+    return mpm::kExitOk;
+  }
+
+  const int frames = args.frames.value_or(scene.simulation.frames);
+  const std::filesystem::path out = args.out.empty() ? scene.output.directory : std::filesystem::path(args.out);
+  if (!args.quiet) print_summary(*sim);
+  spdlog::info("{} particles, {} frames, output in {}", sim->particles().size(), frames,
+               out.string());
+
+  mpm::FrameOutput output(out);
+  mpm::Progress progress(isatty(fileno(stderr)) != 0);
+  std::vector<mpm::Observer*> observers{&output};
+  if (!args.quiet) observers.push_back(&progress);
+  const mpm::RunResult r = mpm::run_frames(*sim, frames, scene.simulation.frame_dt, observers);
+
+  const double steps = static_cast<double>(sim->particles().size()) * sim->substeps();
+  std::printf("%s: %s, %zu particles, %d frames, %zu substeps in %.1f s (%.2fM particle-steps/s)"
+              "; output in %s\n",
+              args.scene.c_str(), r.status.c_str(), sim->particles().size(), r.frames_done,
+              sim->substeps(), r.wall_seconds,
+              r.loop_seconds > 0 ? steps / r.loop_seconds / 1e6 : 0.0, out.string().c_str());
+  if (r.status != "ok") {
+    std::fprintf(stderr, "error: %s\n", r.message.c_str());
+    return mpm::kExitRunFailed;
+  }
+  return mpm::kExitOk;
+}

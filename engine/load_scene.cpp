@@ -1,0 +1,200 @@
+#include "engine/load_scene.h"
+
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "engine/param_reader.h"
+
+namespace mpm {
+
+namespace {
+
+SimulationDesc read_simulation(ParamReader r) {
+  SimulationDesc s;
+  s.frames = r.get_or("frames", s.frames);
+  r.check_range("frames", s.frames, 0, 1e9);
+  s.frame_dt = r.get_or("frame_dt", s.frame_dt);
+  r.check_range("frame_dt", s.frame_dt, 0, 1e300, true);
+  s.dt = r.get<double>("dt");
+  if (s.dt) r.check_range("dt", *s.dt, 0, 1e300, true);
+  s.cfl = r.get<double>("cfl");
+  if (s.cfl) r.check_range("cfl", *s.cfl, 0, 1, true);
+  if (!s.dt && !s.cfl) r.fail("", "give 'dt' (fixed substep), 'cfl' (adaptive substep), or both");
+  s.gravity = r.get_or("gravity", s.gravity);
+  const std::string transfer = r.get_or<std::string>("transfer", "apic");
+  if (transfer == "apic") s.transfer = Transfer::apic;
+  else if (transfer == "pic") s.transfer = Transfer::pic;
+  else if (transfer == "flip") s.transfer = Transfer::flip;
+  else r.fail("transfer", "unknown transfer '" + transfer + "'; expected apic, pic or flip");
+  s.flip_blend = r.get_or("flip_blend", s.flip_blend);
+  r.check_range("flip_blend", s.flip_blend, 0, 1);
+  s.seed = r.get_or<std::uint64_t>("seed", s.seed);
+  r.finish();
+  return s;
+}
+
+GridDesc read_grid(ParamReader r) {
+  GridDesc g;
+  g.origin = r.get_or("origin", g.origin);
+  g.max = r.require<Vec3>("max");
+  for (int a = 0; a < 3; ++a)
+    if (g.max[a] <= g.origin[a]) r.fail("max", "each component must exceed origin's");
+  g.dims = r.require<Vec3i>("dims");
+  for (int a = 0; a < 3; ++a) r.check_range("dims", g.dims[a], 1, 1e5);
+  g.buffer = r.get_or("buffer", g.buffer);
+  r.check_range("buffer", g.buffer, 2, 1e5);
+  if (2 * g.buffer + 1 > g.dims.minCoeff())
+    r.fail("buffer", "a buffer of " + std::to_string(g.buffer) + " cells leaves no interior in a " +
+                         std::to_string(g.dims.minCoeff()) + "-cell axis");
+  r.finish();
+  return g;
+}
+
+Boundary read_boundary(ParamReader& r) {
+  const std::string b = r.get_or<std::string>("boundary", "sticky");
+  if (b == "sticky") return Boundary::sticky;
+  if (b == "slip") return Boundary::slip;
+  if (b == "separate") return Boundary::separate;
+  r.fail("boundary", "unknown boundary '" + b + "'; expected sticky, slip or separate");
+}
+
+WallDesc read_wall(ParamReader r) {
+  WallDesc w;
+  w.loc = r.loc();
+  const bool plane = r.has("plane"), box = r.has("box");
+  if (plane == box) r.fail("", "a wall needs exactly one of 'plane' or 'box'");
+  if (plane) {
+    w.shape = WallDesc::Shape::plane;
+    ParamReader p = r.child("plane");
+    w.point = p.require<Vec3>("point");
+    w.normal = p.require<Vec3>("normal");
+    if (w.normal.norm() < 1e-12) p.fail("normal", "the normal must not be zero");
+    w.normal.normalize();
+    p.finish();
+  } else {
+    w.shape = WallDesc::Shape::box;
+    ParamReader b = r.child("box");
+    w.min = b.require<Vec3>("min");
+    w.max = b.require<Vec3>("max");
+    for (int a = 0; a < 3; ++a)
+      if (w.max[a] <= w.min[a]) b.fail("max", "each component must exceed min's");
+    b.finish();
+  }
+  w.boundary = read_boundary(r);
+  w.friction = r.get_or("friction", 0.0);
+  r.check_range("friction", w.friction, 0, 1e300);
+  r.finish();
+  return w;
+}
+
+ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
+                       const MaterialRegistry& registry) {
+  ObjectDesc o;
+  o.loc = r.loc();
+  o.name = r.require<std::string>("name");
+  o.mesh = r.require<std::string>("mesh");
+  if (o.mesh.is_relative()) o.mesh = scene_dir / o.mesh;
+  o.scale = r.get_vec3_or_scalar("scale", o.scale);
+  for (int a = 0; a < 3; ++a)
+    if (o.scale[a] == 0) r.fail("scale", "scale must not be zero");
+  o.rotation_deg = r.get_or("rotation", o.rotation_deg);
+  o.offset = r.get_or("offset", o.offset);
+  o.velocity = r.get_or("velocity", o.velocity);
+  o.mass = r.get<double>("mass");
+  o.density = r.get<double>("density");
+  if (o.mass && o.density) r.fail("density", "give 'mass' or 'density', not both");
+  if (!o.mass && !o.density) r.fail("", "give the object's 'mass' (kg) or 'density' (kg/m^3)");
+  if (o.mass) r.check_range("mass", *o.mass, 0, 1e300, true);
+  if (o.density) r.check_range("density", *o.density, 0, 1e300, true);
+  o.particles_per_cell = r.get_or("particles_per_cell", o.particles_per_cell);
+  r.check_range("particles_per_cell", o.particles_per_cell, 1, 1000);
+  o.material = r.require<std::string>("material");
+  const MaterialInfo* info = registry.find(o.material);
+  if (!info)
+    r.fail("material", "unknown material '" + o.material +
+                           "'; registered materials: " + registry.names());
+  for (const ParamSpec& spec : info->params) {
+    std::optional<double> v = r.get<double>(spec.name);
+    if (!v && spec.required)
+      r.fail(spec.name, "missing required key '" + spec.name + "' (" + spec.description +
+                            ") for material '" + o.material + "'");
+    const double value = v ? *v : spec.default_value;
+    if (v) r.check_range(spec.name, value, spec.min, spec.max, spec.min_exclusive,
+                         spec.max_exclusive);
+    o.params[spec.name] = value;
+  }
+  r.finish();
+  return o;
+}
+
+SceneDesc read_scene(const YAML::Node& root, const std::filesystem::path& file,
+                     const MaterialRegistry& registry) {
+  const std::string fname = file.string();
+  if (!root.IsMap())
+    throw SceneError(node_loc(root, fname), "", "a scene file must be a mapping of sections");
+  ParamReader r(root, fname, "");
+  SceneDesc scene;
+  scene.file = file;
+  const std::filesystem::path dir = file.parent_path();
+  scene.simulation = read_simulation(r.child("simulation"));
+  scene.grid = read_grid(r.child("grid"));
+
+  const YAML::Node objects = r.sequence("objects");
+  if (objects.size() == 0) r.fail("objects", "a scene needs at least one object");
+  std::set<std::string> names;
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    ParamReader o(objects[i], fname, "objects[" + std::to_string(i) + "]");
+    scene.objects.push_back(read_object(o, dir, registry));
+    if (!names.insert(scene.objects.back().name).second)
+      o.fail("name", "object name '" + scene.objects.back().name + "' is used twice");
+  }
+  const YAML::Node walls = r.sequence("walls");
+  for (std::size_t i = 0; i < walls.size(); ++i)
+    scene.walls.push_back(
+        read_wall(ParamReader(walls[i], fname, "walls[" + std::to_string(i) + "]")));
+
+  if (r.has("output")) {
+    ParamReader out = r.child("output");
+    scene.output.directory = out.get_or<std::string>("directory", "output");
+    out.finish();
+  }
+  r.finish();
+  return scene;
+}
+
+YAML::Node parse_yaml(const std::string& text, const std::string& fname) {
+  try {
+    return YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    FileLoc loc{fname, e.mark.line + 1, e.mark.column + 1};
+    if (e.mark.line < 0) loc = {fname, 0, 0};
+    throw SceneError(loc, "", "YAML syntax error: " + e.msg);
+  }
+}
+
+}  // namespace
+
+SceneDesc load_scene_from_string(const std::string& yaml, const std::filesystem::path& file_name,
+                                 const MaterialRegistry& registry) {
+  const YAML::Node root = parse_yaml(yaml, file_name.string());
+  try {
+    return read_scene(root, file_name, registry);
+  } catch (const YAML::Exception& e) {
+    // Any yaml-cpp error the reader did not anticipate still names the file and position.
+    throw SceneError({file_name.string(), e.mark.line + 1, e.mark.column + 1}, "", e.msg);
+  }
+}
+
+SceneDesc load_scene(const std::filesystem::path& path, const MaterialRegistry& registry) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw SceneError({path.string()}, "", "cannot open scene file: no such file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SceneError({path.string()}, "", "cannot open scene file: not readable");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return load_scene_from_string(text.str(), path, registry);
+}
+
+}  // namespace mpm

@@ -1,0 +1,156 @@
+#include "engine/output.h"
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <stdexcept>
+
+#include <hdf5.h>
+#include <yaml-cpp/yaml.h>
+
+namespace mpm {
+
+namespace {
+
+/// Closes an HDF5 handle when it goes out of scope.
+struct H5Handle {
+  hid_t id;
+  herr_t (*close)(hid_t);
+  ~H5Handle() {
+    if (id >= 0) close(id);
+  }
+};
+
+void check(herr_t status, const std::string& what) {
+  if (status < 0) throw std::runtime_error("HDF5: cannot write " + what);
+}
+
+void write_dataset(hid_t file, const char* name, hid_t file_type, hid_t mem_type, int rank,
+                   const hsize_t* dims, const void* data) {
+  H5Handle space{H5Screate_simple(rank, dims, nullptr), H5Sclose};
+  H5Handle set{H5Dcreate2(file, name, file_type, space.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+               H5Dclose};
+  if (set.id < 0) throw std::runtime_error(std::string("HDF5: cannot create dataset ") + name);
+  if (dims[0] > 0) check(H5Dwrite(set.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), name);
+}
+
+template <class T>
+void write_attribute(hid_t file, const char* name, hid_t file_type, hid_t mem_type, T value) {
+  H5Handle space{H5Screate(H5S_SCALAR), H5Sclose};
+  H5Handle attr{H5Acreate2(file, name, file_type, space.id, H5P_DEFAULT, H5P_DEFAULT), H5Aclose};
+  if (attr.id < 0) throw std::runtime_error(std::string("HDF5: cannot create attribute ") + name);
+  check(H5Awrite(attr.id, mem_type, &value), name);
+}
+
+}  // namespace
+
+std::filesystem::path frame_path(const std::filesystem::path& dir, int frame) {
+  char name[32];
+  std::snprintf(name, sizeof name, "frame_%05d.h5", frame);
+  return dir / name;
+}
+
+void write_frame_hdf5(const std::filesystem::path& file, const Particles& p, Real time,
+                      int frame) {
+  const std::size_t n = p.size();
+  std::vector<float> pos(3 * n), vel(3 * n), J(n);
+  std::vector<int> object(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      pos[3 * i + a] = static_cast<float>(p.x[i][a]);
+      vel[3 * i + a] = static_cast<float>(p.v[i][a]);
+    }
+    J[i] = static_cast<float>(p.F[i].determinant());
+    object[i] = static_cast<int>(p.object[i]);
+  }
+  std::filesystem::path tmp = file;
+  tmp += ".tmp";
+  {
+    H5Handle f{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose};
+    if (f.id < 0) throw std::runtime_error("cannot create frame file '" + tmp.string() + "'");
+    const hsize_t d2[2] = {n, 3}, d1[1] = {n};
+    write_dataset(f.id, "position", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 2, d2, pos.data());
+    write_dataset(f.id, "velocity", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 2, d2, vel.data());
+    write_dataset(f.id, "object_id", H5T_STD_I32LE, H5T_NATIVE_INT, 1, d1, object.data());
+    write_dataset(f.id, "J", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 1, d1, J.data());
+    write_attribute(f.id, "time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, static_cast<double>(time));
+    write_attribute(f.id, "frame", H5T_STD_I32LE, H5T_NATIVE_INT, frame);
+    check(H5Fflush(f.id, H5F_SCOPE_GLOBAL), "frame file");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, file, ec);
+  if (ec) throw std::runtime_error("cannot rename '" + tmp.string() + "': " + ec.message());
+}
+
+FrameOutput::FrameOutput(std::filesystem::path dir) : dir_(std::move(dir)) {}
+
+void FrameOutput::write(const Simulation& sim, int frame) {
+  const auto t0 = std::chrono::steady_clock::now();
+  write_frame_hdf5(frame_path(dir_, frame), sim.particles(), sim.time(), frame);
+  seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ++frames_written_;
+  last_frame_ = frame;
+}
+
+void FrameOutput::on_start(const Simulation& sim, int) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir_, ec);
+  if (ec) throw std::runtime_error("cannot create output folder '" + dir_.string() + "': " +
+                                   ec.message());
+  write(sim, 0);
+}
+
+void FrameOutput::on_frame(const Simulation& sim, int frame) { write(sim, frame); }
+
+void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
+  const std::size_t n = sim.particles().size();
+  YAML::Emitter y;
+  y << YAML::BeginMap;
+  y << YAML::Key << "status" << YAML::Value << r.status;
+  if (!r.message.empty()) y << YAML::Key << "message" << YAML::Value << r.message;
+  y << YAML::Key << "scene" << YAML::Value << sim.scene().file.string();
+  y << YAML::Key << "particles" << YAML::Value << n;
+  y << YAML::Key << "frames" << YAML::Value << r.frames_done;
+  y << YAML::Key << "last_frame_file" << YAML::Value
+    << (last_frame_ >= 0 ? frame_path(dir_, last_frame_).filename().string() : "");
+  y << YAML::Key << "time" << YAML::Value << sim.time();
+  y << YAML::Key << "substeps" << YAML::Value << sim.substeps();
+  y << YAML::Key << "dt_min" << YAML::Value << r.dt_min;
+  y << YAML::Key << "dt_max" << YAML::Value << r.dt_max;
+  y << YAML::Key << "wall_seconds" << YAML::Value << r.wall_seconds;
+  y << YAML::Key << "loop_seconds" << YAML::Value << r.loop_seconds;
+  y << YAML::Key << "output_seconds" << YAML::Value << seconds_;
+  const double steps = static_cast<double>(n) * sim.substeps();
+  y << YAML::Key << "particle_steps_per_second" << YAML::Value
+    << (r.loop_seconds > 0 ? steps / r.loop_seconds : 0.0);
+  y << YAML::Key << "clamped_particles" << YAML::Value << sim.clamped_particles();
+  y << YAML::Key << "stages" << YAML::Value << YAML::BeginMap;
+  for (const Stage& s : sim.stages()) y << YAML::Key << s.name << YAML::Value << s.seconds;
+  y << YAML::Key << "output" << YAML::Value << seconds_;
+  y << YAML::EndMap;
+  y << YAML::Key << "objects" << YAML::Value << YAML::BeginSeq;
+  for (const ObjectInfo& o : sim.objects()) {
+    y << YAML::BeginMap;
+    y << YAML::Key << "name" << YAML::Value << o.name;
+    y << YAML::Key << "material" << YAML::Value << o.material;
+    y << YAML::Key << "particles" << YAML::Value << o.count;
+    y << YAML::Key << "mass" << YAML::Value << o.mass;
+    y << YAML::EndMap;
+  }
+  y << YAML::EndSeq << YAML::EndMap;
+
+  std::error_code ec;
+  std::filesystem::create_directories(dir_, ec);
+  const std::filesystem::path file = dir_ / "report.yaml";
+  std::filesystem::path tmp = file;
+  tmp += ".tmp";
+  {
+    std::ofstream out(tmp);
+    out << y.c_str() << "\n";
+    if (!out) throw std::runtime_error("cannot write '" + tmp.string() + "'");
+  }
+  std::filesystem::rename(tmp, file, ec);
+  if (ec) throw std::runtime_error("cannot write '" + file.string() + "': " + ec.message());
+}
+
+}  // namespace mpm

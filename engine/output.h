@@ -1,0 +1,38 @@
+#pragma once
+/// \file Frame files (HDF5) and the run report (YAML), written by an observer.
+
+#include <filesystem>
+
+#include "engine/run.h"
+
+namespace mpm {
+
+/// Writes `p` as HDF5 datasets position (N x 3), velocity (N x 3), object_id (N), J (N), with
+/// attributes time and frame. Writes to a temporary name and renames, so a frame file is
+/// whole or absent. Throws std::runtime_error on failure.
+void write_frame_hdf5(const std::filesystem::path& file, const Particles& p, Real time,
+                      int frame);
+
+/// Name of frame `frame`'s file in `dir`: frame_00000.h5.
+std::filesystem::path frame_path(const std::filesystem::path& dir, int frame);
+
+/// Writes frame 0 at the start, every completed frame, and report.yaml at the end.
+class FrameOutput : public Observer {
+ public:
+  /// Output into `dir`, created if missing.
+  explicit FrameOutput(std::filesystem::path dir);
+  void on_start(const Simulation& sim, int frames) override;
+  void on_frame(const Simulation& sim, int frame) override;
+  void on_finish(const Simulation& sim, const RunResult& result) override;
+  /// Seconds spent writing frames so far.
+  double seconds() const { return seconds_; }
+
+ private:
+  void write(const Simulation& sim, int frame);
+  std::filesystem::path dir_;
+  int frames_written_ = 0;
+  int last_frame_ = -1;
+  double seconds_ = 0;
+};
+
+}  // namespace mpm

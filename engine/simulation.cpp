@@ -1,0 +1,173 @@
+#include "engine/simulation.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <span>
+#include <utility>
+
+#include "engine/mesh.h"
+#include "engine/sampling.h"
+
+namespace mpm {
+
+namespace {
+
+template <class T>
+std::span<T> slice(std::vector<T>& v, const MaterialRange& r) {
+  return std::span<T>(v).subspan(r.first, r.count);
+}
+
+template <class T>
+std::span<const T> slice(const std::vector<T>& v, const MaterialRange& r) {
+  return std::span<const T>(v).subspan(r.first, r.count);
+}
+
+}  // namespace
+
+Simulation::Simulation(const SceneDesc& scene)
+    : scene_(scene), grid_(scene.grid, scene.simulation.transfer == Transfer::flip) {}
+
+std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
+                                               const MaterialRegistry& registry) {
+  std::unique_ptr<Simulation> sim(new Simulation(scene));
+  Particles& P = sim->particles_;
+  const Vec3 h = scene.grid.spacing();
+  const Real cell_volume = h.prod();
+  const Vec3 interior_lo = scene.grid.origin + scene.grid.buffer * h;
+  const Vec3 interior_hi = scene.grid.max - scene.grid.buffer * h;
+
+  for (std::size_t o = 0; o < scene.objects.size(); ++o) {
+    const ObjectDesc& od = scene.objects[o];
+    const std::string key = "objects[" + std::to_string(o) + "]";
+    TriangleMesh mesh;
+    try {
+      mesh = load_mesh(od.mesh);
+    } catch (const MeshError& e) {
+      throw SceneError(od.loc, key + ".mesh", e.what());
+    }
+    if (const std::string why = closedness_problem(mesh); !why.empty())
+      throw SceneError(od.loc, key + ".mesh", "'" + od.mesh.string() + "': " + why);
+    transform_mesh(mesh, od.scale, od.rotation_deg, od.offset);
+    const std::vector<Vec3> points =
+        sample_inside(mesh, scene.grid, od.particles_per_cell, scene.simulation.seed, o);
+    if (points.empty())
+      throw SceneError(od.loc, key, "object '" + od.name + "' samples zero particles");
+    for (const Vec3& x : points)
+      if ((x.array() < interior_lo.array()).any() || (x.array() > interior_hi.array()).any())
+        throw SceneError(od.loc, key + ".offset",
+                         "object '" + od.name +
+                             "' lies partly outside the grid interior (grid minus buffer)");
+
+    const std::size_t n = points.size();
+    const Real v0 = cell_volume / od.particles_per_cell;
+    const Real total_mass = od.mass ? *od.mass : *od.density * v0 * n;
+    const Real density = total_mass / (v0 * n);
+    ObjectInfo info{od.name, od.material, P.size(), n, total_mass, density};
+
+    P.x.insert(P.x.end(), points.begin(), points.end());
+    P.v.insert(P.v.end(), n, od.velocity);
+    P.F.insert(P.F.end(), n, Mat3::Identity());
+    P.mass.insert(P.mass.end(), n, total_mass / n);
+    P.volume0.insert(P.volume0.end(), n, v0);
+    P.object.insert(P.object.end(), n, static_cast<std::uint32_t>(o));
+
+    const MaterialInfo* mat = registry.find(od.material);
+    if (!mat) throw SceneError(od.loc, key + ".material", "unknown material '" + od.material + "'");
+    sim->materials_.push_back(
+        {info.first, n, mat->create(od.params, GroupInfo{density, n})});
+    sim->objects_.push_back(info);
+  }
+  const std::size_t n = P.size();
+  if (scene.simulation.transfer == Transfer::apic) P.C.assign(n, Mat3::Zero());
+  P.stress.assign(n, Mat3::Zero());
+  P.grad_v.assign(n, Mat3::Zero());
+  sim->walls_ = build_wall_planes(scene.walls);
+  sim->build_stages();
+  return sim;
+}
+
+void Simulation::build_stages() {
+  const SimulationDesc& s = scene_.simulation;
+  stages_.clear();
+  auto add = [&](std::string name, std::function<void(Real)> fn) {
+    stages_.push_back({std::move(name), std::move(fn), 0.0});
+  };
+  add("sort", [this](Real) { sort_particles(particles_, grid_, order_); });
+  add("compute_stress", [this](Real) {
+    for (auto& m : materials_)
+      m.material->compute_stress(slice(std::as_const(particles_.F), m),
+                                 slice(std::as_const(particles_.volume0), m),
+                                 slice(particles_.stress, m));
+  });
+  add("particles_to_grid",
+      [this](Real) { particles_to_grid(particles_, order_, scene_.simulation.transfer, grid_); });
+  add("grid_update", [this](Real) { grid_update(grid_); });
+  add("stress_forces", [this](Real dt) { apply_stress_forces(dt, grid_); });
+  if (s.gravity.squaredNorm() > 0)
+    add("gravity", [this](Real dt) { apply_gravity(dt, scene_.simulation.gravity, grid_); });
+  if (!walls_.empty()) add("walls", [this](Real) { apply_walls(walls_, grid_); });
+  add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
+  add("grid_to_particles", [this](Real) {
+    grid_to_particles(grid_, scene_.simulation.transfer, scene_.simulation.flip_blend,
+                      particles_);
+  });
+  add("update_F", [this](Real dt) { update_deformation(dt, particles_); });
+  const bool plastic = std::any_of(materials_.begin(), materials_.end(),
+                                   [](const auto& m) { return m.material->has_plasticity(); });
+  if (plastic)
+    add("plasticity", [this](Real) {
+      for (auto& m : materials_)
+        if (m.material->has_plasticity()) m.material->apply_plasticity(slice(particles_.F, m));
+    });
+  add("advect", [this](Real dt) {
+    last_advect_ = advect_particles(dt, grid_, particles_);
+    clamped_total_ += last_advect_.clamped;
+  });
+}
+
+Real Simulation::stable_dt() {
+  const SimulationDesc& s = scene_.simulation;
+  if (!s.cfl) return *s.dt;
+  Real c = 0;
+  for (const auto& m : materials_)
+    c = std::max(c, m.material->max_wave_speed(slice(std::as_const(particles_.F), m)));
+  // dt <= C h / (c + |v|max) (references.md, "Time step").
+  const Real bound = *s.cfl * grid_.h.minCoeff() / (c + max_speed());
+  return s.dt ? std::min(*s.dt, bound) : bound;
+}
+
+void Simulation::substep(Real dt) {
+  using clock = std::chrono::steady_clock;
+  for (Stage& st : stages_) {
+    const auto t0 = clock::now();
+    st.run(dt);
+    st.seconds += std::chrono::duration<double>(clock::now() - t0).count();
+  }
+  time_ += dt;
+  ++substeps_;
+}
+
+Real Simulation::max_speed() const {
+  Real v2 = 0;
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(particles_.size());
+#pragma omp parallel for schedule(static) reduction(max : v2)
+  for (std::ptrdiff_t q = 0; q < n; ++q) v2 = std::max(v2, particles_.v[q].squaredNorm());
+  return std::sqrt(v2);
+}
+
+Real Simulation::kinetic_energy() const {
+  Real e = 0;
+  for (std::size_t q = 0; q < particles_.size(); ++q)
+    e += 0.5 * particles_.mass[q] * particles_.v[q].squaredNorm();
+  return e;
+}
+
+Real Simulation::elastic_energy() const {
+  Real e = 0;
+  for (const auto& m : materials_)
+    e += m.material->elastic_energy(slice(particles_.F, m), slice(particles_.volume0, m));
+  return e;
+}
+
+}  // namespace mpm

@@ -1,0 +1,50 @@
+#pragma once
+/// \file Particle <-> grid transfers and the particle-side stages of a substep.
+
+#include <cstdint>
+#include <vector>
+
+#include "engine/grid.h"
+#include "engine/particles.h"
+#include "engine/scene_desc.h"
+
+namespace mpm {
+
+/// Particles ordered by the grid cell of their stencil, with slabs for race-free scatter.
+///
+/// Slabs are kSlabWidth cells thick along x. A particle in slab s writes only nodes of slabs
+/// s and s + 1, so all even slabs can scatter at once, then all odd ones, with no atomics.
+/// The slab width does not depend on the thread count, so sums are the same for any count.
+struct ParticleOrder {
+  static constexpr int kSlabWidth = 2;  ///< Cells per slab along x.
+  std::vector<std::uint32_t> order;     ///< Particle indices sorted by stencil base cell.
+  std::vector<std::size_t> slab_start;  ///< order[slab_start[s] .. slab_start[s+1]) is slab s.
+  std::vector<std::uint32_t> counts;    ///< Scratch for the counting sort.
+};
+
+/// Sorts particles by stencil cell and sets grid.active to the nodes they touch.
+void sort_particles(const Particles& p, Grid& grid, ParticleOrder& order);
+
+/// Clears the active nodes, then scatters mass, momentum (with the APIC affine term
+/// m C (x_i - x_p), Jiang et al. 2015 eq. 11) and the stress force
+/// f_i = -sum_p V0 tau_p grad w_ip (Jiang et al. 2016 course notes, eq. 189) to the grid.
+void particles_to_grid(const Particles& p, const ParticleOrder& order, Transfer transfer,
+                       Grid& grid);
+
+/// Gathers velocity (PIC, FLIP blend, or APIC with C = B D^-1, D = h^2 / 4, Jiang et al. 2015
+/// eq. 8-10) and the velocity gradient sum_i v_i grad w_ip^T into the particles.
+void grid_to_particles(const Grid& grid, Transfer transfer, Real flip_blend, Particles& p);
+
+/// F <- (I + dt grad v) F (Stomakhin et al. 2013, eq. 7 with the elastic part only).
+void update_deformation(Real dt, Particles& p);
+
+/// What advection saw.
+struct AdvectStats {
+  std::size_t clamped = 0;    ///< Particles pushed back out of the buffer.
+  std::size_t nonfinite = 0;  ///< Particles with a NaN or infinite position (left as they were).
+};
+
+/// x <- x + dt v, kept inside the grid interior (outside the buffer).
+AdvectStats advect_particles(Real dt, const Grid& grid, Particles& p);
+
+}  // namespace mpm

@@ -1,0 +1,57 @@
+#pragma once
+/// \file Fixed corotated elasticity (Stomakhin, Howes, Schroeder, Teran 2012,
+/// "Energetically consistent invertible elasticity", SCA; eq. 4 and its first Piola stress).
+
+#include <cmath>
+
+#include "materials/material.h"
+#include "materials/svd.h"
+
+namespace mpm::materials {
+
+/// Fixed corotated hyperelasticity: psi = mu sum_i (sigma_i - 1)^2 + lambda/2 (J - 1)^2.
+struct FixedCorotated {
+  Real mu = 0;      ///< Shear modulus, Pa.
+  Real lambda = 0;  ///< First Lamé parameter, Pa.
+
+  /// Energy density psi(F), J/m^3.
+  Real energy(const Mat3& F) const {
+    Mat3 U, V;
+    Vec3 s;
+    svd_rv(F, U, s, V);
+    const Real J = s.prod();
+    return mu * (s.array() - 1).square().sum() + 0.5 * lambda * (J - 1) * (J - 1);
+  }
+
+  /// First Piola-Kirchhoff stress P = 2 mu (F - R) + lambda (J - 1) J F^-T, Pa.
+  Mat3 first_piola(const Mat3& F) const {
+    const Mat3 R = polar_rotation(F);
+    const Real J = F.determinant();
+    // J F^-T is the cofactor matrix of F, defined even when F is singular.
+    return 2 * mu * (F - R) + lambda * (J - 1) * cofactor(F);
+  }
+
+  /// Kirchhoff stress tau = P F^T = 2 mu (F - R) F^T + lambda (J - 1) J I, Pa.
+  Mat3 kirchhoff(const Mat3& F) const {
+    const Mat3 R = polar_rotation(F);
+    const Real J = F.determinant();
+    return 2 * mu * (F - R) * F.transpose() + lambda * (J - 1) * J * Mat3::Identity();
+  }
+
+  /// P-wave speed sqrt((lambda + 2 mu) / rho) at current density rho0 / J, m/s.
+  Real wave_speed(const Mat3& F, Real rho0) const {
+    const Real J = std::max(std::abs(F.determinant()), Real(1e-6));
+    return std::sqrt((lambda + 2 * mu) * J / rho0);
+  }
+
+  /// Cofactor matrix J F^-T, computed without inverting F.
+  static Mat3 cofactor(const Mat3& F) {
+    Mat3 c;
+    c.col(0) = F.col(1).cross(F.col(2));
+    c.col(1) = F.col(2).cross(F.col(0));
+    c.col(2) = F.col(0).cross(F.col(1));
+    return c;
+  }
+};
+
+}  // namespace mpm::materials

@@ -1,0 +1,48 @@
+#pragma once
+/// \file MaterialGroup for any hyperelastic value-type model: one tight loop per stage.
+
+#include <algorithm>
+#include <cstddef>
+
+#include "materials/material.h"
+
+namespace mpm::materials {
+
+/// Wraps a value-type model (energy, kirchhoff, wave_speed) as a MaterialGroup.
+/// The loops are templated on Model, so the compiler inlines the model per particle.
+template <class Model>
+class ElasticGroup final : public MaterialGroup {
+ public:
+  /// A group of particles sharing `model`, with reference density `rho0`.
+  ElasticGroup(const Model& model, Real rho0) : model_(model), rho0_(rho0) {}
+
+  void compute_stress(std::span<const Mat3> F, std::span<const Real> volume0,
+                      std::span<Mat3> out) const override {
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t p = 0; p < n; ++p) out[p] = -volume0[p] * model_.kirchhoff(F[p]);
+  }
+
+  Real max_wave_speed(std::span<const Mat3> F) const override {
+    Real c = 0;
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
+#pragma omp parallel for schedule(static) reduction(max : c)
+    for (std::ptrdiff_t p = 0; p < n; ++p) c = std::max(c, model_.wave_speed(F[p], rho0_));
+    return c;
+  }
+
+  Real elastic_energy(std::span<const Mat3> F, std::span<const Real> volume0) const override {
+    Real e = 0;
+    for (std::size_t p = 0; p < F.size(); ++p) e += volume0[p] * model_.energy(F[p]);
+    return e;
+  }
+
+  /// The wrapped model.
+  const Model& model() const { return model_; }
+
+ private:
+  Model model_;
+  Real rho0_;
+};
+
+}  // namespace mpm::materials

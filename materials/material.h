@@ -1,0 +1,86 @@
+#pragma once
+/// \file The interface every constitutive model implements, and the parameter table it declares.
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "engine/math.h"
+
+namespace mpm {
+
+/// One scalar parameter a material reads from an object's scene keys.
+struct ParamSpec {
+  std::string name;         ///< Scene key, e.g. "E".
+  std::string unit;         ///< Unit for docs and `mpm materials`, e.g. "Pa"; empty if dimensionless.
+  std::string description;  ///< One-line meaning.
+  bool required = false;    ///< True if the scene must give it; otherwise default_value is used.
+  double default_value = 0; ///< Value used when the key is absent and not required.
+  double min = -1e300;      ///< Smallest valid value.
+  double max = 1e300;       ///< Largest valid value.
+  bool min_exclusive = false;  ///< True if min itself is invalid.
+  bool max_exclusive = false;  ///< True if max itself is invalid.
+};
+
+/// Parameter values after validation, keyed by ParamSpec::name. Used only while building.
+using ParamValues = std::map<std::string, double>;
+
+/// Per-object facts a material group needs besides its own parameters.
+struct GroupInfo {
+  double density = 0;  ///< Reference mass density rho0, kg/m^3.
+  std::size_t count = 0;  ///< Number of particles in the group's range.
+};
+
+/// A material applied to one contiguous range of particles.
+///
+/// The engine calls each method once per group per stage with spans of that range, so the
+/// virtual call is paid once per group, never per particle.
+class MaterialGroup {
+ public:
+  virtual ~MaterialGroup() = default;
+
+  /// Writes -V0 * tau (tau = P F^T, the Kirchhoff stress) for each particle into `out`.
+  virtual void compute_stress(std::span<const Mat3> F, std::span<const Real> volume0,
+                              std::span<Mat3> out) const = 0;
+
+  /// True if the material changes F after the F update (plasticity).
+  virtual bool has_plasticity() const { return false; }
+
+  /// Projects F onto the elastic region, keeping the plastic part as group state.
+  virtual void apply_plasticity(std::span<Mat3> F) {}
+
+  /// Largest elastic wave speed (m/s) over the range, at the current density rho0 / J.
+  virtual Real max_wave_speed(std::span<const Mat3> F) const = 0;
+
+  /// Total elastic energy (J) stored in the range: sum of V0 * psi(F).
+  virtual Real elastic_energy(std::span<const Mat3> F, std::span<const Real> volume0) const = 0;
+};
+
+/// A registered material: its name, parameter table and factory.
+struct MaterialInfo {
+  std::string name;                  ///< Scene name, e.g. "corotated".
+  std::string description;           ///< One line for `mpm materials`.
+  std::string reference;             ///< Paper the model follows.
+  std::vector<ParamSpec> params;     ///< Keys read from the object besides the engine's own.
+  /// Builds a group for `info.count` particles from validated parameters.
+  std::function<std::unique_ptr<MaterialGroup>(const ParamValues&, const GroupInfo&)> create;
+};
+
+/// Lamé parameters from Young's modulus and Poisson's ratio.
+struct Lame {
+  Real mu;      ///< Shear modulus, Pa.
+  Real lambda;  ///< First Lamé parameter, Pa.
+};
+
+/// mu = E / (2 (1 + nu)), lambda = E nu / ((1 + nu)(1 - 2 nu)).
+inline Lame lame_from_young(Real E, Real nu) {
+  return {E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))};
+}
+
+/// The parameters every elastic model shares: Young's modulus and Poisson's ratio.
+std::vector<ParamSpec> elastic_param_specs();
+
+}  // namespace mpm
