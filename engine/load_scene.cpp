@@ -94,6 +94,7 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
   o.loc = r.loc();
   o.name = r.require<std::string>("name");
   o.mesh = r.require<std::string>("mesh");
+  o.mesh_loc = r.loc("mesh");
   if (o.mesh.is_relative()) o.mesh = scene_dir / o.mesh;
   o.scale = r.get_vec3_or_scalar("scale", o.scale);
   for (int a = 0; a < 3; ++a)

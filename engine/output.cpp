@@ -21,6 +21,12 @@ struct H5Handle {
   }
 };
 
+/// Errors are reported through exceptions; keep HDF5 from printing its own error stack.
+void quiet_hdf5() {
+  static const bool done = [] { return H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr) >= 0; }();
+  (void)done;
+}
+
 void check(herr_t status, const std::string& what) {
   if (status < 0) throw std::runtime_error("HDF5: cannot write " + what);
 }
@@ -63,6 +69,7 @@ void write_frame_hdf5(const std::filesystem::path& file, const Particles& p, Rea
     J[i] = static_cast<float>(p.F[i].determinant());
     object[i] = static_cast<int>(p.object[i]);
   }
+  quiet_hdf5();
   std::filesystem::path tmp = file;
   tmp += ".tmp";
   {
@@ -80,6 +87,50 @@ void write_frame_hdf5(const std::filesystem::path& file, const Particles& p, Rea
   std::error_code ec;
   std::filesystem::rename(tmp, file, ec);
   if (ec) throw std::runtime_error("cannot rename '" + tmp.string() + "': " + ec.message());
+}
+
+namespace {
+
+template <class T>
+std::vector<T> read_dataset(hid_t file, const char* name, hid_t mem_type, std::size_t width) {
+  H5Handle set{H5Dopen2(file, name, H5P_DEFAULT), H5Dclose};
+  if (set.id < 0) throw std::runtime_error(std::string("HDF5: no dataset ") + name);
+  H5Handle space{H5Dget_space(set.id), H5Sclose};
+  const hssize_t count = H5Sget_simple_extent_npoints(space.id);
+  if (count < 0) throw std::runtime_error(std::string("HDF5: bad dataset ") + name);
+  std::vector<T> out(static_cast<std::size_t>(count));
+  if (count > 0 && H5Dread(set.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
+    throw std::runtime_error(std::string("HDF5: cannot read ") + name);
+  if (out.size() % width != 0) throw std::runtime_error(std::string("HDF5: bad shape of ") + name);
+  return out;
+}
+
+template <class T>
+T read_attribute(hid_t file, const char* name, hid_t mem_type) {
+  H5Handle attr{H5Aopen(file, name, H5P_DEFAULT), H5Aclose};
+  T value{};
+  if (attr.id < 0 || H5Aread(attr.id, mem_type, &value) < 0)
+    throw std::runtime_error(std::string("HDF5: cannot read attribute ") + name);
+  return value;
+}
+
+}  // namespace
+
+FrameData read_frame_hdf5(const std::filesystem::path& file) {
+  quiet_hdf5();
+  H5Handle f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+  if (f.id < 0) throw std::runtime_error("cannot open frame file '" + file.string() + "'");
+  FrameData d;
+  d.position = read_dataset<float>(f.id, "position", H5T_NATIVE_FLOAT, 3);
+  d.velocity = read_dataset<float>(f.id, "velocity", H5T_NATIVE_FLOAT, 3);
+  d.object_id = read_dataset<int>(f.id, "object_id", H5T_NATIVE_INT, 1);
+  d.J = read_dataset<float>(f.id, "J", H5T_NATIVE_FLOAT, 1);
+  d.time = read_attribute<double>(f.id, "time", H5T_NATIVE_DOUBLE);
+  d.frame = read_attribute<int>(f.id, "frame", H5T_NATIVE_INT);
+  if (d.position.size() != 3 * d.size() || d.velocity.size() != 3 * d.size() ||
+      d.J.size() != d.size())
+    throw std::runtime_error("frame file '" + file.string() + "' has datasets of unequal length");
+  return d;
 }
 
 FrameOutput::FrameOutput(std::filesystem::path dir) : dir_(std::move(dir)) {}

@@ -2,6 +2,7 @@
 /// \file Frame files (HDF5) and the run report (YAML), written by an observer.
 
 #include <filesystem>
+#include <vector>
 
 #include "engine/run.h"
 
@@ -12,6 +13,21 @@ namespace mpm {
 /// whole or absent. Throws std::runtime_error on failure.
 void write_frame_hdf5(const std::filesystem::path& file, const Particles& p, Real time,
                       int frame);
+
+/// One frame file read back: the datasets write_frame_hdf5 writes.
+struct FrameData {
+  std::vector<float> position;  ///< N x 3, row-major.
+  std::vector<float> velocity;  ///< N x 3, row-major.
+  std::vector<int> object_id;   ///< N.
+  std::vector<float> J;         ///< N.
+  double time = 0;              ///< Attribute "time", s.
+  int frame = 0;                ///< Attribute "frame".
+  /// Number of particles.
+  std::size_t size() const { return object_id.size(); }
+};
+
+/// Reads a file written by write_frame_hdf5. Throws std::runtime_error on failure.
+FrameData read_frame_hdf5(const std::filesystem::path& file);
 
 /// Name of frame `frame`'s file in `dir`: frame_00000.h5.
 std::filesystem::path frame_path(const std::filesystem::path& dir, int frame);

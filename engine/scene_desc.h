@@ -60,6 +60,7 @@ struct ObjectDesc {
   std::string material;            ///< Name in the material registry.
   ParamValues params;              ///< The material's parameters, validated.
   FileLoc loc;                     ///< Where the object starts in the scene file.
+  FileLoc mesh_loc;                ///< Where its mesh path is written.
 };
 
 /// A wall acting on grid velocities.

@@ -44,10 +44,10 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     try {
       mesh = load_mesh(od.mesh);
     } catch (const MeshError& e) {
-      throw SceneError(od.loc, key + ".mesh", e.what());
+      throw SceneError(od.mesh_loc, key + ".mesh", e.what());
     }
     if (const std::string why = closedness_problem(mesh); !why.empty())
-      throw SceneError(od.loc, key + ".mesh", "'" + od.mesh.string() + "': " + why);
+      throw SceneError(od.mesh_loc, key + ".mesh", "'" + od.mesh.string() + "': " + why);
     transform_mesh(mesh, od.scale, od.rotation_deg, od.offset);
     const std::vector<Vec3> points =
         sample_inside(mesh, scene.grid, od.particles_per_cell, scene.simulation.seed, o);
