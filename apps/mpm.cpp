@@ -16,6 +16,7 @@
 #include "engine/progress.h"
 #include "engine/run.h"
 #include "engine/simulation.h"
+#include "materials/plugin.h"
 
 namespace {
 
@@ -24,7 +25,9 @@ constexpr const char* kUsage = R"(mpm - a Material Point Method engine for the C
 Usage:
   mpm run SCENE.yaml [--out DIR] [--frames N] [--threads N] [--quiet] [--log-level LEVEL]
   mpm validate SCENE.yaml     check a scene and print what it would simulate
-  mpm materials               list every registered material and its parameters
+  mpm materials [SCENE.yaml | PLUGIN.so]
+                              list every registered material (and a scene's or file's plugins)
+                              with its keys, units, defaults and ranges
   mpm --help | --version
 
 Options:
@@ -101,12 +104,16 @@ Args parse_args(int argc, char** argv) {
 
 int list_materials(const mpm::MaterialRegistry& registry) {
   for (const mpm::MaterialInfo& m : registry.all()) {
-    std::printf("%s: %s\n  (%s)\n", m.name.c_str(), m.description.c_str(), m.reference.c_str());
+    std::printf("%s: %s\n  reference: %s\n", m.name.c_str(), m.description.c_str(),
+                m.reference.c_str());
+    std::printf("  %-22s %-8s %-10s %-16s %s\n", "key", "unit", "default", "range", "meaning");
     for (const mpm::ParamSpec& p : m.params) {
-      std::printf("  %-22s %-4s %s", p.name.c_str(), p.unit.c_str(), p.description.c_str());
-      if (p.required) std::printf(" (required)");
-      else std::printf(" (default %g)", p.default_value);
-      std::printf("\n");
+      char def[32];
+      std::snprintf(def, sizeof def, "%g", p.default_value);
+      std::printf("  %-22s %-8s %-10s %-16s %s\n", p.name.c_str(),
+                  p.unit.empty() ? "-" : p.unit.c_str(), p.required ? "required" : def,
+                  mpm::range_text(p.min, p.max, p.min_exclusive, p.max_exclusive).c_str(),
+                  p.description.c_str());
     }
   }
   return mpm::kExitOk;
@@ -131,8 +138,18 @@ int main(int argc, char** argv) {
   spdlog::set_level(args.quiet ? spdlog::level::warn : level);
   if (args.threads) omp_set_num_threads(*args.threads);
 
-  const mpm::MaterialRegistry registry = mpm::builtin_registry();
-  if (args.command == "materials") return list_materials(registry);
+  mpm::MaterialRegistry registry = mpm::builtin_registry();
+  if (args.command == "materials") {
+    // `mpm materials [SCENE.yaml | PLUGIN.so]`: also list what a scene's or a file's plugins add.
+    try {
+      if (args.scene.ends_with(".so")) mpm::load_plugin(args.scene, registry);
+      else if (!args.scene.empty()) mpm::load_scene(args.scene, registry);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "error: %s\n", e.what());
+      return mpm::kExitBadInput;
+    }
+    return list_materials(registry);
+  }
   if (args.command != "run" && args.command != "validate")
     usage_error("unknown command '" + args.command + "'");
   if (args.scene.empty()) usage_error("'mpm " + args.command + "' needs a scene file");

@@ -1,10 +1,12 @@
 #include "engine/load_scene.h"
 
+#include <cstdlib>
 #include <fstream>
 #include <set>
 #include <sstream>
 
 #include "engine/param_reader.h"
+#include "materials/plugin.h"
 
 namespace mpm {
 
@@ -129,8 +131,33 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
   return o;
 }
 
+/// A plugin path as written in a scene: absolute, relative to the scene file, or a bare file
+/// name looked up in the scene's folder, then $MPM_PLUGIN_PATH (colon-separated), then the
+/// lib/ folder beside the running mpm's bin/ (where the build and the install put plugins).
+std::filesystem::path resolve_plugin(const std::string& written, const std::filesystem::path& dir) {
+  namespace fs = std::filesystem;
+  const fs::path p = written;
+  if (p.is_absolute()) return p;
+  if (p.has_parent_path()) return dir / p;
+  std::vector<fs::path> places{dir};
+  if (const char* env = std::getenv("MPM_PLUGIN_PATH")) {
+    std::string list = env;
+    for (std::size_t start = 0; start <= list.size();) {
+      const std::size_t end = std::min(list.find(':', start), list.size());
+      if (end > start) places.emplace_back(list.substr(start, end - start));
+      start = end + 1;
+    }
+  }
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) places.push_back(exe.parent_path().parent_path() / "lib");
+  for (const fs::path& place : places)
+    if (fs::is_regular_file(place / p, ec)) return place / p;
+  return dir / p;  // not found: the loader reports it with this path
+}
+
 SceneDesc read_scene(const YAML::Node& root, const std::filesystem::path& file,
-                     const MaterialRegistry& registry) {
+                     MaterialRegistry& registry) {
   const std::string fname = file.string();
   if (!root.IsMap())
     throw SceneError(node_loc(root, fname), "", "a scene file must be a mapping of sections");
@@ -138,6 +165,20 @@ SceneDesc read_scene(const YAML::Node& root, const std::filesystem::path& file,
   SceneDesc scene;
   scene.file = file;
   const std::filesystem::path dir = file.parent_path();
+  // Plugins first: objects may name the materials they add.
+  const YAML::Node plugins = r.sequence("plugins");
+  for (std::size_t i = 0; i < plugins.size(); ++i) {
+    const std::string key = "plugins[" + std::to_string(i) + "]";
+    if (!plugins[i].IsScalar())
+      throw SceneError(node_loc(plugins[i], fname), key, "expected a path to a shared library");
+    const std::filesystem::path lib = resolve_plugin(plugins[i].Scalar(), dir);
+    try {
+      load_plugin(lib, registry);
+    } catch (const PluginError& e) {
+      throw SceneError(node_loc(plugins[i], fname), key, e.what());
+    }
+    scene.plugins.push_back(lib);
+  }
   scene.simulation = read_simulation(r.child("simulation"));
   scene.grid = read_grid(r.child("grid"));
 
@@ -177,7 +218,7 @@ YAML::Node parse_yaml(const std::string& text, const std::string& fname) {
 }  // namespace
 
 SceneDesc load_scene_from_string(const std::string& yaml, const std::filesystem::path& file_name,
-                                 const MaterialRegistry& registry) {
+                                 MaterialRegistry& registry) {
   const YAML::Node root = parse_yaml(yaml, file_name.string());
   try {
     return read_scene(root, file_name, registry);
@@ -187,7 +228,7 @@ SceneDesc load_scene_from_string(const std::string& yaml, const std::filesystem:
   }
 }
 
-SceneDesc load_scene(const std::filesystem::path& path, const MaterialRegistry& registry) {
+SceneDesc load_scene(const std::filesystem::path& path, MaterialRegistry& registry) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
     throw SceneError({path.string()}, "", "cannot open scene file: no such file");

@@ -9,11 +9,12 @@
 
 namespace mpm {
 
-/// Reads and validates the scene at `path`. Throws SceneError naming file, line and key.
-SceneDesc load_scene(const std::filesystem::path& path, const MaterialRegistry& registry);
+/// Reads and validates the scene at `path`. Plugins the scene lists are loaded into
+/// `registry` first. Throws SceneError naming file, line and key.
+SceneDesc load_scene(const std::filesystem::path& path, MaterialRegistry& registry);
 
 /// Reads a scene from YAML text; `file_name` is used in messages and for relative paths.
 SceneDesc load_scene_from_string(const std::string& yaml, const std::filesystem::path& file_name,
-                                 const MaterialRegistry& registry);
+                                 MaterialRegistry& registry);
 
 }  // namespace mpm

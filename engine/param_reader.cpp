@@ -1,5 +1,7 @@
 #include "engine/param_reader.h"
 
+#include "materials/material.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -98,16 +100,8 @@ void ParamReader::check_range(const std::string& key, double v, double lo, doubl
                               bool lo_open, bool hi_open) const {
   const bool ok = (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
   if (ok) return;
-  std::string range;
-  const bool has_lo = lo > -1e299, has_hi = hi < 1e299;
-  if (has_lo && has_hi)
-    range = std::string(lo_open ? "(" : "[") + format_number(lo) + ", " + format_number(hi) +
-            (hi_open ? ")" : "]");
-  else if (has_lo)
-    range = std::string(lo_open ? "> " : ">= ") + format_number(lo);
-  else
-    range = std::string(hi_open ? "< " : "<= ") + format_number(hi);
-  fail(key, "value " + format_number(v) + " is out of range: expected " + range);
+  fail(key, "value " + format_number(v) + " is out of range: expected " +
+                range_text(lo, hi, lo_open, hi_open));
 }
 
 namespace {

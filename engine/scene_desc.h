@@ -89,6 +89,7 @@ struct SceneDesc {
   std::vector<ObjectDesc> objects; ///< Bodies.
   std::vector<WallDesc> walls;     ///< Walls.
   OutputDesc output;               ///< Output.
+  std::vector<std::filesystem::path> plugins;  ///< Material plugins loaded for this scene.
 };
 
 }  // namespace mpm

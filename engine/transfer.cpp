@@ -118,30 +118,36 @@ void gather_all(const Grid& g, Real flip_blend, Particles& p) {
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
   // D^-1 = 4 / h^2 per axis for quadratic B-splines (Jiang et al. 2015, section 5.3).
   const Vec3 inv_D = 4 * g.inv_h.cwiseProduct(g.inv_h);
+  // Columns of K per node: w, grad w (3), w (x_i - x_p) (3). The sums over the 27 nodes are
+  // then one small matrix product, which keeps the accumulators in registers.
+  using NodeVel = Eigen::Matrix<Real, 3, 27>;
+  using NodeKernel = Eigen::Matrix<Real, 27, 7>;
 #pragma omp parallel for schedule(static)
   for (std::ptrdiff_t q = 0; q < n; ++q) {
     const Stencil s = quadratic_stencil(p.x[q], g.origin, g.inv_h);
     const Vec3 corner = g.position(s.base.x(), s.base.y(), s.base.z()) - p.x[q];
-    Vec3 v = Vec3::Zero(), dv = Vec3::Zero();
-    Mat3 B = Mat3::Zero(), grad = Mat3::Zero();
+    NodeVel vel, dvel;
+    NodeKernel K;
+    int c = 0;
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j)
-        for (int k = 0; k < 3; ++k) {
+        for (int k = 0; k < 3; ++k, ++c) {
           const std::size_t idx = g.index(s.base.x() + i, s.base.y() + j, s.base.z() + k);
           const Real w = s.weight(i, j, k);
-          const Vec3& vi = g.velocity[idx];
-          v += w * vi;
-          grad += vi * s.gradient(i, j, k).transpose();
-          if constexpr (kTransfer == Transfer::apic)
-            B += w * vi * (corner + Vec3(i, j, k).cwiseProduct(g.h)).transpose();
-          if constexpr (kTransfer == Transfer::flip) dv += w * (vi - g.velocity_old[idx]);
+          vel.col(c) = g.velocity[idx];
+          if constexpr (kTransfer == Transfer::flip) dvel.col(c) = g.velocity[idx] - g.velocity_old[idx];
+          K(c, 0) = w;
+          K.block<1, 3>(c, 1) = s.gradient(i, j, k).transpose();
+          K.block<1, 3>(c, 4) = w * (corner + Vec3(i, j, k).cwiseProduct(g.h)).transpose();
         }
+    const Eigen::Matrix<Real, 3, 7> sums = vel.lazyProduct(K);
+    const Vec3 v = sums.col(0);
     if constexpr (kTransfer == Transfer::flip)
-      p.v[q] = flip_blend * (p.v[q] + dv) + (1 - flip_blend) * v;
+      p.v[q] = flip_blend * (p.v[q] + dvel * K.col(0)) + (1 - flip_blend) * v;
     else
       p.v[q] = v;
-    if constexpr (kTransfer == Transfer::apic) p.C[q] = B * inv_D.asDiagonal();
-    p.grad_v[q] = grad;
+    if constexpr (kTransfer == Transfer::apic) p.C[q] = sums.rightCols<3>() * inv_D.asDiagonal();
+    p.grad_v[q] = sums.middleCols<3>(1);
   }
 }
 

@@ -43,15 +43,6 @@ struct FixedCorotated {
     const Real J = std::max(std::abs(F.determinant()), Real(1e-6));
     return std::sqrt((lambda + 2 * mu) * J / rho0);
   }
-
-  /// Cofactor matrix J F^-T, computed without inverting F.
-  static Mat3 cofactor(const Mat3& F) {
-    Mat3 c;
-    c.col(0) = F.col(1).cross(F.col(2));
-    c.col(1) = F.col(2).cross(F.col(0));
-    c.col(2) = F.col(0).cross(F.col(1));
-    return c;
-  }
 };
 
 }  // namespace mpm::materials

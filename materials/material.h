@@ -5,6 +5,7 @@
 #include <map>
 #include <memory>
 #include <span>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -18,12 +19,27 @@ struct ParamSpec {
   std::string unit;         ///< Unit for docs and `mpm materials`, e.g. "Pa"; empty if dimensionless.
   std::string description;  ///< One-line meaning.
   bool required = false;    ///< True if the scene must give it; otherwise default_value is used.
-  double default_value = 0; ///< Value used when the key is absent and not required.
+  double default_value = 0; ///< Value used when the key is absent (or a typical value if required).
   double min = -1e300;      ///< Smallest valid value.
   double max = 1e300;       ///< Largest valid value.
   bool min_exclusive = false;  ///< True if min itself is invalid.
   bool max_exclusive = false;  ///< True if max itself is invalid.
 };
+
+/// "(0, 0.5)", ">= 1", "any" ...: a range as text, for messages and `mpm materials`.
+inline std::string range_text(double lo, double hi, bool lo_open, bool hi_open) {
+  auto num = [](double v) {
+    std::ostringstream s;
+    s << v;
+    return s.str();
+  };
+  const bool has_lo = lo > -1e299, has_hi = hi < 1e299;
+  if (has_lo && has_hi)
+    return std::string(lo_open ? "(" : "[") + num(lo) + ", " + num(hi) + (hi_open ? ")" : "]");
+  if (has_lo) return std::string(lo_open ? "> " : ">= ") + num(lo);
+  if (has_hi) return std::string(hi_open ? "< " : "<= ") + num(hi);
+  return "any";
+}
 
 /// Parameter values after validation, keyed by ParamSpec::name. Used only while building.
 using ParamValues = std::map<std::string, double>;
@@ -65,6 +81,7 @@ struct MaterialInfo {
   std::string description;           ///< One line for `mpm materials`.
   std::string reference;             ///< Paper the model follows.
   std::vector<ParamSpec> params;     ///< Keys read from the object besides the engine's own.
+  bool supports_inversion = true;    ///< True if stress stays finite for det F <= 0 and near 0.
   /// Builds a group for `info.count` particles from validated parameters.
   std::function<std::unique_ptr<MaterialGroup>(const ParamValues&, const GroupInfo&)> create;
 };
@@ -81,6 +98,24 @@ inline Lame lame_from_young(Real E, Real nu) {
 }
 
 /// The parameters every elastic model shares: Young's modulus and Poisson's ratio.
-std::vector<ParamSpec> elastic_param_specs();
+inline std::vector<ParamSpec> elastic_param_specs() {
+  ParamSpec E{"E", "Pa", "Young's modulus", true, 1.0e4};
+  E.min = 0;
+  E.min_exclusive = true;
+  ParamSpec nu{"nu", "", "Poisson's ratio", true, 0.3};
+  nu.min = -1;
+  nu.max = 0.5;
+  nu.min_exclusive = nu.max_exclusive = true;
+  return {E, nu};
+}
+
+/// Cofactor matrix J F^-T, computed without inverting F (defined for singular F).
+inline Mat3 cofactor(const Mat3& F) {
+  Mat3 c;
+  c.col(0) = F.col(1).cross(F.col(2));
+  c.col(1) = F.col(2).cross(F.col(0));
+  c.col(2) = F.col(0).cross(F.col(1));
+  return c;
+}
 
 }  // namespace mpm

@@ -45,7 +45,7 @@ inline void jacobi_rotate(Mat3& S, Mat3& V, int p, int q) {
 /// Givens rotation that zeroes B(i, col) against B(j, col) (rows j < i); accumulates into U.
 inline void givens_zero(Mat3& B, Mat3& U, int j, int i, int col) {
   const Real a = B(j, col), b = B(i, col);
-  const Real r = std::hypot(a, b);
+  const Real r = std::sqrt(a * a + b * b);  // no overflow guard needed: |F| is moderate
   if (r == 0) return;
   const Real c = a / r, s = b / r;
   for (int k = 0; k < 3; ++k) {

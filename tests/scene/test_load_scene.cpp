@@ -61,7 +61,8 @@ TEST_CASE("scene: every shipped scene loads", "[scene]") {
   for (const auto& entry : std::filesystem::directory_iterator(test::source_dir() / "scenes")) {
     if (entry.path().extension() != ".yaml") continue;
     INFO(entry.path());
-    CHECK_NOTHROW(load_scene(entry.path(), builtin_registry()));
+    MaterialRegistry registry = builtin_registry();
+    CHECK_NOTHROW(load_scene(entry.path(), registry));
   }
 }
 

@@ -26,7 +26,8 @@ inline std::filesystem::path temp_dir(const std::string& name) {
 
 /// Loads a scene from YAML text as if it were a file in the repository's scenes/ folder.
 inline SceneDesc scene_from(const std::string& yaml) {
-  return load_scene_from_string(yaml, source_dir() / "scenes" / "test.yaml", builtin_registry());
+  MaterialRegistry registry = builtin_registry();
+  return load_scene_from_string(yaml, source_dir() / "scenes" / "test.yaml", registry);
 }
 
 /// A random matrix with entries in [-scale, scale] added to the identity.

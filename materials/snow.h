@@ -1,0 +1,96 @@
+#pragma once
+/// \file Snow: fixed corotated elasticity with hardening and singular-value clamping
+/// (Stomakhin, Schroeder, Chai, Teran, Selle 2013, "A material point method for snow
+/// simulation", SIGGRAPH; sections 5 and 7, eq. 3 for the hardened Lamé parameters).
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <vector>
+
+#include "materials/corotated.h"
+#include "materials/svd.h"
+
+namespace mpm::materials {
+
+/// The plastic part of the snow model: clamps the elastic singular values and tracks Jp.
+struct SnowPlasticity {
+  Real critical_compression = 2.5e-2;  ///< theta_c: elastic singular values >= 1 - theta_c.
+  Real critical_stretch = 7.5e-3;      ///< theta_s: elastic singular values <= 1 + theta_s.
+  Real hardening = 10;                 ///< xi: mu, lambda scale by exp(xi (1 - Jp)).
+
+  /// Moves the part of Fe outside the clamp range into the plastic part (section 7):
+  /// Fe = U clamp(Sigma) V^T and Jp *= det(Sigma) / det(clamp(Sigma)), so det(Fe) Jp is kept.
+  void project(Mat3& Fe, Real& Jp) const {
+    Mat3 U, V;
+    Vec3 s;
+    svd_rv(Fe, U, s, V);
+    const Vec3 c = s.cwiseMax(1 - critical_compression).cwiseMin(1 + critical_stretch);
+    Jp *= s.prod() / c.prod();
+    Fe = U * c.asDiagonal() * V.transpose();
+  }
+
+  /// Hardening factor exp(xi (1 - Jp)) applied to mu and lambda.
+  Real hardening_factor(Real Jp) const { return std::exp(hardening * (1 - Jp)); }
+};
+
+/// MaterialGroup for snow: per-particle Jp, allocated for this group's particles only.
+class SnowGroup final : public MaterialGroup {
+ public:
+  /// `elastic` holds the unhardened mu0 and lambda0; `count` particles start with Jp = 1.
+  SnowGroup(const FixedCorotated& elastic, const SnowPlasticity& plastic, Real rho0,
+            std::size_t count)
+      : elastic_(elastic), plastic_(plastic), rho0_(rho0), Jp_(count, 1) {}
+
+  void compute_stress(std::span<const Mat3> F, std::span<const Real> volume0,
+                      std::span<Mat3> out) const override {
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t p = 0; p < n; ++p) out[p] = -volume0[p] * hardened(p).kirchhoff(F[p]);
+  }
+
+  bool has_plasticity() const override { return true; }
+
+  void apply_plasticity(std::span<Mat3> F) override {
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t p = 0; p < n; ++p) plastic_.project(F[p], Jp_[p]);
+  }
+
+  Real max_wave_speed(std::span<const Mat3> F) const override {
+    Real c = 0;
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
+    // Hardened moduli, at the current density rho0 / (Je Jp) (references.md, "Time step").
+#pragma omp parallel for schedule(static) reduction(max : c)
+    for (std::ptrdiff_t p = 0; p < n; ++p) {
+      const FixedCorotated m = hardened(p);
+      const Real J = std::max(std::abs(F[p].determinant()) * Jp_[p], Real(1e-6));
+      c = std::max(c, std::sqrt((m.lambda + 2 * m.mu) * J / rho0_));
+    }
+    return c;
+  }
+
+  Real elastic_energy(std::span<const Mat3> F, std::span<const Real> volume0) const override {
+    Real e = 0;
+    for (std::size_t p = 0; p < F.size(); ++p) e += volume0[p] * hardened(p).energy(F[p]);
+    return e;
+  }
+
+  /// Plastic volume ratio Jp of each particle in the group.
+  const std::vector<Real>& Jp() const { return Jp_; }
+  /// Mutable Jp, for tests and restarts.
+  std::vector<Real>& Jp() { return Jp_; }
+
+ private:
+  FixedCorotated hardened(std::ptrdiff_t p) const {
+    const Real h = plastic_.hardening_factor(Jp_[p]);
+    return {elastic_.mu * h, elastic_.lambda * h};
+  }
+
+  FixedCorotated elastic_;
+  SnowPlasticity plastic_;
+  Real rho0_;
+  std::vector<Real> Jp_;
+};
+
+}  // namespace mpm::materials
