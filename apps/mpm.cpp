@@ -1,9 +1,10 @@
 // mpm: the command-line front end. Parses flags, then calls the engine library.
 #include <unistd.h>
 
+#include <atomic>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
-#include <iostream>
 #include <optional>
 #include <string>
 #include <vector>
@@ -16,6 +17,7 @@
 #include "engine/progress.h"
 #include "engine/run.h"
 #include "engine/simulation.h"
+#include "engine/validate.h"
 #include "materials/plugin.h"
 
 namespace {
@@ -23,28 +25,35 @@ namespace {
 constexpr const char* kUsage = R"(mpm - a Material Point Method engine for the CPU
 
 Usage:
-  mpm run SCENE.yaml [--out DIR] [--frames N] [--threads N] [--quiet] [--log-level LEVEL]
-  mpm validate SCENE.yaml     check a scene and print what it would simulate
+  mpm run SCENE.yaml [options]   simulate and write frames and report.yaml
+  mpm validate SCENE.yaml [--set KEY=VALUE ...]
+                                 check a scene and print what it would simulate
   mpm materials [SCENE.yaml | PLUGIN.so]
-                              list every registered material (and a scene's or file's plugins)
-                              with its keys, units, defaults and ranges
+                                 list every registered material (and a scene's or a file's
+                                 plugins) with its keys, units, defaults and ranges
   mpm --help | --version
 
-Options:
+Options of run:
   --out DIR          write frames and report.yaml to DIR (default: the scene's output.directory)
+  --force            replace the results of an earlier run in the output folder
   --frames N         simulate N frames instead of the scene's simulation.frames
+  --set KEY=VALUE    override a scene value, e.g. --set grid.dims=64 --set objects[0].E=2e4
+                     (repeatable; checked like the file)
   --threads N        use N threads (default: all cores)
-  --quiet            print only the final summary line
+  --quiet            print only warnings and the final summary line
   --log-level LEVEL  trace, debug, info, warn, error or off (default info)
 
-Exit codes: 0 success, 1 the run failed (unstable or I/O error), 2 bad scene or usage.
+Exit codes: 0 success; 1 the run failed (unstable, interrupted, or output could not be
+written; the report says why and frames already written stay whole); 2 bad scene or usage.
+Ctrl-C or SIGTERM stops a run after the current substep.
 )";
 
-/// Flags of `mpm run` and `mpm validate`.
+/// The command line.
 struct Args {
   std::string command, scene, out, log_level = "info";
   std::optional<int> frames, threads;
-  bool quiet = false;
+  std::vector<std::string> sets;
+  bool quiet = false, force = false;
 };
 
 [[noreturn]] void usage_error(const std::string& what) {
@@ -84,6 +93,10 @@ Args parse_args(int argc, char** argv) {
       a.frames = parse_count(w, value(), 0);
     } else if (w == "--threads") {
       a.threads = parse_count(w, value(), 1);
+    } else if (w == "--set") {
+      a.sets.push_back(value());
+    } else if (w == "--force") {
+      a.force = true;
     } else if (w == "--quiet") {
       a.quiet = true;
     } else if (w == "--log-level") {
@@ -119,14 +132,9 @@ int list_materials(const mpm::MaterialRegistry& registry) {
   return mpm::kExitOk;
 }
 
-void print_summary(const mpm::Simulation& sim) {
-  for (const mpm::ObjectInfo& o : sim.objects())
-    std::printf("object %-16s %-12s %9zu particles  %g kg\n", o.name.c_str(), o.material.c_str(),
-                o.count, static_cast<double>(o.mass));
-  std::printf("stages:");
-  for (const mpm::Stage& s : sim.stages()) std::printf(" %s", s.name.c_str());
-  std::printf("\n");
-}
+std::atomic<bool> g_stop{false};
+
+extern "C" void on_signal(int) { g_stop.store(true); }
 
 }  // namespace
 
@@ -140,7 +148,6 @@ int main(int argc, char** argv) {
 
   mpm::MaterialRegistry registry = mpm::builtin_registry();
   if (args.command == "materials") {
-    // `mpm materials [SCENE.yaml | PLUGIN.so]`: also list what a scene's or a file's plugins add.
     try {
       if (args.scene.ends_with(".so")) mpm::load_plugin(args.scene, registry);
       else if (!args.scene.empty()) mpm::load_scene(args.scene, registry);
@@ -154,32 +161,48 @@ int main(int argc, char** argv) {
     usage_error("unknown command '" + args.command + "'");
   if (args.scene.empty()) usage_error("'mpm " + args.command + "' needs a scene file");
 
+  // Describe and validate, then build: any problem is a SceneError, exit code 2.
   std::unique_ptr<mpm::Simulation> sim;
   mpm::SceneDesc scene;
+  std::filesystem::path out;
   try {
-    scene = mpm::load_scene(args.scene, registry);
+    mpm::LoadOptions options;
+    for (const std::string& s : args.sets) options.overrides.push_back(mpm::parse_override(s));
+    scene = mpm::load_scene(args.scene, registry, options);
     sim = mpm::Simulation::create(scene, registry);
+    out = args.out.empty() ? scene.output.directory : std::filesystem::path(args.out);
+    if (args.command == "run") {
+      try {
+        mpm::prepare_output_directory(out, args.force);
+      } catch (const std::exception& e) {
+        if (!args.out.empty()) throw mpm::SceneError({"--out"}, "", e.what());
+        throw mpm::SceneError(scene.output.loc, "output.directory", e.what());
+      }
+    }
   } catch (const mpm::SceneError& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return mpm::kExitBadInput;
   }
+  for (const std::string& w : mpm::scene_warnings(*sim)) spdlog::warn("{}", w);
   if (args.command == "validate") {
-    std::printf("%s: valid, %zu particles\n", args.scene.c_str(), sim->particles().size());
-    print_summary(*sim);
+    std::printf("%s: valid, %zu particles\n%s", args.scene.c_str(), sim->particles().size(),
+                mpm::scene_summary(*sim).c_str());
     return mpm::kExitOk;
   }
 
   const int frames = args.frames.value_or(scene.simulation.frames);
-  const std::filesystem::path out = args.out.empty() ? scene.output.directory : std::filesystem::path(args.out);
-  if (!args.quiet) print_summary(*sim);
+  if (!args.quiet) std::printf("%s", mpm::scene_summary(*sim).c_str());
   spdlog::info("{} particles, {} frames, output in {}", sim->particles().size(), frames,
                out.string());
 
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
   mpm::FrameOutput output(out);
   mpm::Progress progress(isatty(fileno(stderr)) != 0);
   std::vector<mpm::Observer*> observers{&output};
   if (!args.quiet) observers.push_back(&progress);
-  const mpm::RunResult r = mpm::run_frames(*sim, frames, scene.simulation.frame_dt, observers);
+  const mpm::RunResult r =
+      mpm::run_frames(*sim, frames, scene.simulation.frame_dt, observers, &g_stop);
 
   const double steps = static_cast<double>(sim->particles().size()) * sim->substeps();
   std::printf("%s: %s, %zu particles, %d frames, %zu substeps in %.1f s (%.2fM particle-steps/s)"

@@ -43,6 +43,7 @@ GridDesc read_grid(ParamReader r) {
   for (int a = 0; a < 3; ++a)
     if (g.max[a] <= g.origin[a]) r.fail("max", "each component must exceed origin's");
   g.dims = r.require<Vec3i>("dims");
+  g.loc = r.loc("dims");
   for (int a = 0; a < 3; ++a) r.check_range("dims", g.dims[a], 1, 1e5);
   g.buffer = r.get_or("buffer", g.buffer);
   r.check_range("buffer", g.buffer, 2, 1e5);
@@ -157,7 +158,7 @@ std::filesystem::path resolve_plugin(const std::string& written, const std::file
 }
 
 SceneDesc read_scene(const YAML::Node& root, const std::filesystem::path& file,
-                     MaterialRegistry& registry) {
+                     MaterialRegistry& registry, const LoadOptions& options) {
   const std::string fname = file.string();
   if (!root.IsMap())
     throw SceneError(node_loc(root, fname), "", "a scene file must be a mapping of sections");
@@ -171,6 +172,8 @@ SceneDesc read_scene(const YAML::Node& root, const std::filesystem::path& file,
     const std::string key = "plugins[" + std::to_string(i) + "]";
     if (!plugins[i].IsScalar())
       throw SceneError(node_loc(plugins[i], fname), key, "expected a path to a shared library");
+    if (!options.load_plugins)
+      throw SceneError(node_loc(plugins[i], fname), key, "plugins are disabled here");
     const std::filesystem::path lib = resolve_plugin(plugins[i].Scalar(), dir);
     try {
       load_plugin(lib, registry);
@@ -199,10 +202,87 @@ SceneDesc read_scene(const YAML::Node& root, const std::filesystem::path& file,
   if (r.has("output")) {
     ParamReader out = r.child("output");
     scene.output.directory = out.get_or<std::string>("directory", "output");
+    scene.output.loc = out.loc("directory");
     out.finish();
   }
   r.finish();
   return scene;
+}
+
+/// A copy of `n` whose nodes carry no file position, so errors about them say "--set".
+YAML::Node unplaced_copy(const YAML::Node& n) {
+  if (n.IsScalar()) return YAML::Node(n.Scalar());
+  if (n.IsSequence()) {
+    YAML::Node out(YAML::NodeType::Sequence);
+    for (const auto& e : n) out.push_back(unplaced_copy(e));
+    return out;
+  }
+  if (n.IsMap()) {
+    YAML::Node out(YAML::NodeType::Map);
+    for (const auto& kv : n) out[kv.first.Scalar()] = unplaced_copy(kv.second);
+    return out;
+  }
+  return YAML::Node(YAML::NodeType::Null);
+}
+
+/// Sets root[key path] = value, creating missing mapping keys but not list entries.
+void apply_override(YAML::Node root, const SceneOverride& o, const std::string& fname) {
+  const FileLoc where{fname + " (--set " + o.key + "=" + o.value + ")"};
+  YAML::Node value;
+  try {
+    value = unplaced_copy(YAML::Load(o.value));
+  } catch (const YAML::Exception& e) {
+    throw SceneError(where, o.key, "the value is not valid YAML: " + e.msg);
+  }
+  // Split "objects[1].E" into steps: "objects", 1, "E".
+  YAML::Node node = root;
+  std::string done;
+  std::size_t i = 0;
+  const std::string& k = o.key;
+  while (i < k.size()) {
+    if (k[i] == '.') {
+      ++i;
+      continue;
+    }
+    if (k[i] == '[') {
+      const std::size_t close = k.find(']', i);
+      if (close == std::string::npos) throw SceneError(where, o.key, "unclosed '['");
+      std::size_t index = 0;
+      try {
+        index = std::stoul(k.substr(i + 1, close - i - 1));
+      } catch (const std::exception&) {
+        throw SceneError(where, o.key, "bad list index");
+      }
+      if (!node.IsSequence() || index >= node.size())
+        throw SceneError(where, o.key, "'" + done + "' has no entry [" + std::to_string(index) + "]");
+      done += k.substr(i, close - i + 1);
+      i = close + 1;
+      if (i >= k.size()) {
+        node[index] = value;
+        return;
+      }
+      node.reset(node[index]);
+      continue;
+    }
+    std::size_t end = k.find_first_of(".[", i);
+    if (end == std::string::npos) end = k.size();
+    const std::string name = k.substr(i, end - i);
+    done += (done.empty() ? "" : ".") + name;
+    if (!node.IsMap() && !node.IsNull())
+      throw SceneError(where, o.key, "'" + done + "' is inside a value that is not a mapping");
+    if (end >= k.size()) {
+      node[name] = value;
+      return;
+    }
+    YAML::Node next = node[name];
+    if (!next.IsDefined() || next.IsNull()) {
+      if (k[end] == '[') throw SceneError(where, o.key, "there is no list '" + done + "'");
+      node[name] = YAML::Node(YAML::NodeType::Map);
+    }
+    node.reset(node[name]);
+    i = end;
+  }
+  throw SceneError(where, o.key, "empty key");
 }
 
 YAML::Node parse_yaml(const std::string& text, const std::string& fname) {
@@ -217,18 +297,29 @@ YAML::Node parse_yaml(const std::string& text, const std::string& fname) {
 
 }  // namespace
 
+SceneOverride parse_override(const std::string& text) {
+  const std::size_t eq = text.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw SceneError({"--set " + text}, "", "expected KEY=VALUE, e.g. --set grid.dims=64");
+  return {text.substr(0, eq), text.substr(eq + 1)};
+}
+
 SceneDesc load_scene_from_string(const std::string& yaml, const std::filesystem::path& file_name,
-                                 MaterialRegistry& registry) {
-  const YAML::Node root = parse_yaml(yaml, file_name.string());
+                                 MaterialRegistry& registry, const LoadOptions& options) {
+  YAML::Node root = parse_yaml(yaml, file_name.string());
+  if (!options.overrides.empty() && !root.IsMap())
+    throw SceneError({file_name.string()}, "", "a scene file must be a mapping of sections");
+  for (const SceneOverride& o : options.overrides) apply_override(root, o, file_name.string());
   try {
-    return read_scene(root, file_name, registry);
+    return read_scene(root, file_name, registry, options);
   } catch (const YAML::Exception& e) {
     // Any yaml-cpp error the reader did not anticipate still names the file and position.
     throw SceneError({file_name.string(), e.mark.line + 1, e.mark.column + 1}, "", e.msg);
   }
 }
 
-SceneDesc load_scene(const std::filesystem::path& path, MaterialRegistry& registry) {
+SceneDesc load_scene(const std::filesystem::path& path, MaterialRegistry& registry,
+                     const LoadOptions& options) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
     throw SceneError({path.string()}, "", "cannot open scene file: no such file");
@@ -236,7 +327,7 @@ SceneDesc load_scene(const std::filesystem::path& path, MaterialRegistry& regist
   if (!in) throw SceneError({path.string()}, "", "cannot open scene file: not readable");
   std::ostringstream text;
   text << in.rdbuf();
-  return load_scene_from_string(text.str(), path, registry);
+  return load_scene_from_string(text.str(), path, registry, options);
 }
 
 }  // namespace mpm

@@ -3,18 +3,35 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "engine/scene_desc.h"
 #include "materials/registry.h"
 
 namespace mpm {
 
+/// One `--set KEY=VALUE` override, e.g. {"objects[0].E", "2e4"}.
+struct SceneOverride {
+  std::string key;    ///< Dotted key path with [i] list indices.
+  std::string value;  ///< YAML text of the new value ("64", "[1, 2, 3]", "apic").
+};
+
+/// How to load a scene.
+struct LoadOptions {
+  std::vector<SceneOverride> overrides;  ///< Applied to the document before validation.
+  bool load_plugins = true;              ///< False rejects any `plugins:` entry (fuzzing).
+};
+
+/// Splits "KEY=VALUE" into a SceneOverride; throws SceneError if there is no '='.
+SceneOverride parse_override(const std::string& text);
+
 /// Reads and validates the scene at `path`. Plugins the scene lists are loaded into
 /// `registry` first. Throws SceneError naming file, line and key.
-SceneDesc load_scene(const std::filesystem::path& path, MaterialRegistry& registry);
+SceneDesc load_scene(const std::filesystem::path& path, MaterialRegistry& registry,
+                     const LoadOptions& options = {});
 
 /// Reads a scene from YAML text; `file_name` is used in messages and for relative paths.
 SceneDesc load_scene_from_string(const std::string& yaml, const std::filesystem::path& file_name,
-                                 MaterialRegistry& registry);
+                                 MaterialRegistry& registry, const LoadOptions& options = {});
 
 }  // namespace mpm

@@ -133,6 +133,35 @@ FrameData read_frame_hdf5(const std::filesystem::path& file) {
   return d;
 }
 
+void prepare_output_directory(const std::filesystem::path& dir, bool force) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir))
+    throw std::runtime_error("cannot create output folder '" + dir.string() + "'" +
+                             (ec ? ": " + ec.message() : ""));
+  std::vector<fs::path> old;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    const bool frame = name.starts_with("frame_") &&
+                       (name.ends_with(".h5") || name.ends_with(".h5.tmp"));
+    if (frame || name == "report.yaml") old.push_back(e.path());
+  }
+  if (!old.empty() && !force)
+    throw std::runtime_error("output folder '" + dir.string() + "' already holds results of an "
+                             "earlier run (" + std::to_string(old.size()) +
+                             " files, e.g. " + old.front().filename().string() +
+                             "); use --force to replace them, or --out to write elsewhere");
+  for (const fs::path& f : old) fs::remove(f, ec);
+  const fs::path probe = dir / ".mpm_write_test";
+  {
+    std::ofstream out(probe);
+    out << "ok";
+    if (!out) throw std::runtime_error("cannot write to output folder '" + dir.string() + "'");
+  }
+  fs::remove(probe, ec);
+}
+
 FrameOutput::FrameOutput(std::filesystem::path dir) : dir_(std::move(dir)) {}
 
 void FrameOutput::write(const Simulation& sim, int frame) {

@@ -32,6 +32,11 @@ FrameData read_frame_hdf5(const std::filesystem::path& file);
 /// Name of frame `frame`'s file in `dir`: frame_00000.h5.
 std::filesystem::path frame_path(const std::filesystem::path& dir, int frame);
 
+/// Makes `dir` ready for a new run: creates it, checks it can be written, and refuses
+/// (std::runtime_error naming the folder) if it already holds frames or a report, unless
+/// `force`, which deletes them first.
+void prepare_output_directory(const std::filesystem::path& dir, bool force);
+
 /// Writes frame 0 at the start, every completed frame, and report.yaml at the end.
 class FrameOutput : public Observer {
  public:

@@ -28,7 +28,8 @@ std::string format_number(double v) {
 
 FileLoc node_loc(const YAML::Node& node, const std::string& file) {
   const YAML::Mark m = node.Mark();
-  if (m.line < 0) return {file, 0, 0};
+  // Only values set with --set have no position in the file (they were built, not parsed).
+  if (m.line < 0) return {file + " (--set)", 0, 0};
   return {file, m.line + 1, m.column + 1};
 }
 

@@ -7,7 +7,7 @@
 namespace mpm {
 
 RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
-                     const std::vector<Observer*>& observers) {
+                     const std::vector<Observer*>& observers, const std::atomic<bool>* stop) {
   using clock = std::chrono::steady_clock;
   const auto start = clock::now();
   RunResult result;
@@ -49,6 +49,12 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
           break;
         }
         for (Observer* o : observers) o->on_substep(sim, f);
+        if (stop && stop->load()) {
+          result.status = "interrupted";
+          result.message = "stopped by a signal at substep " + std::to_string(sim.substeps()) +
+                           "; the last complete frame is " + std::to_string(f - 1);
+          break;
+        }
       }
       if (result.status != "ok") break;
       sim.set_time(frame_end);

@@ -1,6 +1,7 @@
 #pragma once
 /// \file The frame loop: substeps until each frame time, with observers between steps.
 
+#include <atomic>
 #include <string>
 #include <vector>
 
@@ -10,7 +11,7 @@ namespace mpm {
 
 /// How a run ended.
 struct RunResult {
-  std::string status = "ok";  ///< ok | unstable | error.
+  std::string status = "ok";  ///< ok | unstable | error | interrupted.
   std::string message;        ///< Why, when not ok.
   int frames_done = 0;        ///< Frames completed after the initial state.
   double wall_seconds = 0;    ///< Whole run including output.
@@ -34,8 +35,11 @@ class Observer {
 };
 
 /// Runs `frames` frames of `frame_dt` seconds. An observer that throws std::exception ends
-/// the run with status "error"; a non-finite particle ends it with status "unstable".
+/// the run with status "error"; a non-finite particle ends it with status "unstable"; `stop`
+/// becoming true (e.g. from a signal handler) ends it after the current substep with status
+/// "interrupted".
 RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
-                     const std::vector<Observer*>& observers);
+                     const std::vector<Observer*>& observers,
+                     const std::atomic<bool>* stop = nullptr);
 
 }  // namespace mpm

@@ -41,6 +41,7 @@ struct GridDesc {
   Vec3 max{1, 1, 1};     ///< Maximum corner, m.
   Vec3i dims{100, 100, 100};  ///< Cells per axis.
   int buffer = 3;        ///< Cells lining the boundary that particles never enter.
+  FileLoc loc;           ///< Where `dims` is written (for errors about the grid's size).
 
   /// Cell size per axis, m.
   Vec3 spacing() const { return (max - origin).cwiseQuotient(dims.cast<Real>()); }
@@ -79,6 +80,7 @@ struct WallDesc {
 /// Where and what to write.
 struct OutputDesc {
   std::filesystem::path directory = "output";  ///< Frame folder (absolute or cwd-relative).
+  FileLoc loc;                                 ///< Where the directory is written.
 };
 
 /// A whole scene, validated.

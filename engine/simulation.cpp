@@ -6,6 +6,10 @@
 #include <span>
 #include <utility>
 
+#include <unistd.h>
+
+#include <cstdio>
+
 #include "engine/mesh.h"
 #include "engine/sampling.h"
 
@@ -28,8 +32,33 @@ std::span<const T> slice(const std::vector<T>& v, const MaterialRange& r) {
 Simulation::Simulation(const SceneDesc& scene)
     : scene_(scene), grid_(scene.grid, scene.simulation.transfer == Transfer::flip) {}
 
+namespace {
+
+/// Bytes of node state per grid node (mass, velocity, force, and old velocity for FLIP).
+double bytes_per_node(const SceneDesc& s) {
+  return sizeof(Real) + 2 * sizeof(Vec3) + (s.simulation.transfer == Transfer::flip ? sizeof(Vec3) : 0);
+}
+
+/// Throws SceneError if `bytes` cannot fit in this machine's memory.
+void check_memory(double bytes, const FileLoc& loc, const std::string& key, const std::string& what) {
+  const double have = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE);
+  if (bytes > 0.8 * have) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, " needs %.3g GB of memory; this machine has %.3g GB", bytes / 1e9,
+                  have / 1e9);
+    throw SceneError(loc, key, what + buf);
+  }
+}
+
+}  // namespace
+
 std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
                                                const MaterialRegistry& registry) {
+  const Vec3 nodes = (scene.grid.dims + Vec3i::Ones()).cast<Real>();
+  check_memory(nodes.prod() * bytes_per_node(scene), scene.grid.loc, "grid.dims",
+               "the grid of " + std::to_string(scene.grid.dims.x()) + " x " +
+                   std::to_string(scene.grid.dims.y()) + " x " +
+                   std::to_string(scene.grid.dims.z()) + " cells");
   std::unique_ptr<Simulation> sim(new Simulation(scene));
   Particles& P = sim->particles_;
   const Vec3 h = scene.grid.spacing();
@@ -49,6 +78,14 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     if (const std::string why = closedness_problem(mesh); !why.empty())
       throw SceneError(od.mesh_loc, key + ".mesh", "'" + od.mesh.string() + "': " + why);
     transform_mesh(mesh, od.scale, od.rotation_deg, od.offset);
+    {  // Refuse before sampling an object whose particles could never fit in memory.
+      Eigen::AlignedBox<Real, 3> box;
+      for (const Vec3& v : mesh.vertices) box.extend(v);
+      const Vec3 cells = box.sizes().cwiseQuotient(h) + Vec3::Ones();
+      check_memory(cells.prod() * od.particles_per_cell * 400.0, od.loc, key,
+                   "object '" + od.name + "' at " + std::to_string(od.particles_per_cell) +
+                       " particles per cell");
+    }
     const std::vector<Vec3> points =
         sample_inside(mesh, scene.grid, od.particles_per_cell, scene.simulation.seed, o);
     if (points.empty())

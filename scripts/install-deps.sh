@@ -6,7 +6,7 @@ set -euo pipefail
 packages=(
   build-essential cmake pkg-config
   libeigen3-dev libyaml-cpp-dev libassimp-dev libhdf5-dev
-  libspdlog-dev libfmt-dev catch2
+  libspdlog-dev libfmt-dev libpng-dev catch2
 )
 
 missing=()

@@ -1,0 +1,164 @@
+#include "engine/io/ply.h"
+
+#include <bit>
+#include <charconv>
+#include <cstdint>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+
+namespace mpm {
+
+namespace {
+
+/// Bytes per vertex: 7 floats and one int.
+constexpr std::size_t kRecordBytes = 8 * 4;
+/// Vertices buffered before each write.
+constexpr std::size_t kChunk = 1 << 15;
+
+/// The property lines write_ply writes, in order.
+constexpr const char* kProperties[] = {
+    "property float x",  "property float y",  "property float z",       "property float vx",
+    "property float vy", "property float vz", "property int object_id", "property float J"};
+
+/// Appends the 4 bytes of `bits` to `out`, least significant first.
+void put_le(std::string& out, std::uint32_t bits) {
+  for (int b = 0; b < 4; ++b) out.push_back(static_cast<char>((bits >> (8 * b)) & 0xffu));
+}
+
+/// The 4 bytes at `p` read least significant first.
+std::uint32_t get_le(const char* p) {
+  std::uint32_t bits = 0;
+  for (int b = 0; b < 4; ++b) bits |= std::uint32_t(static_cast<unsigned char>(p[b])) << (8 * b);
+  return bits;
+}
+
+/// Shortest text that reads back as exactly `value`.
+std::string exact_text(double value) {
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, value);
+  return std::string(buf, r.ptr);
+}
+
+/// Throws std::runtime_error naming `file` and `why`.
+[[noreturn]] void bad(const std::filesystem::path& file, const std::string& why) {
+  throw std::runtime_error("PLY file '" + file.string() + "': " + why);
+}
+
+/// Parses all of `text` as a T, or throws.
+template <class T>
+T parse_all(const std::filesystem::path& file, const std::string& text, const char* what) {
+  T value{};
+  const auto r = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (r.ec != std::errc() || r.ptr != text.data() + text.size())
+    bad(file, std::string("bad ") + what + " '" + text + "'");
+  return value;
+}
+
+}  // namespace
+
+void write_ply(const std::filesystem::path& file, const FrameView& frame) {
+  check_frame_view(frame);
+  const std::size_t n = frame.size();
+  for (std::uint32_t id : frame.object_id)
+    if (id > static_cast<std::uint32_t>(std::numeric_limits<std::int32_t>::max()))
+      throw std::invalid_argument("object id " + std::to_string(id) + " does not fit a PLY int");
+
+  std::string header = "ply\nformat binary_little_endian 1.0\n";
+  header += "comment time " + exact_text(frame.time) + "\n";
+  header += "comment frame " + std::to_string(frame.frame) + "\n";
+  header += "element vertex " + std::to_string(n) + "\n";
+  for (const char* p : kProperties) header += std::string(p) + "\n";
+  header += "end_header\n";
+
+  std::filesystem::path tmp = file;
+  tmp += ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error("cannot create '" + tmp.string() + "'");
+    out.write(header.data(), static_cast<std::streamsize>(header.size()));
+    std::string buf;
+    buf.reserve(kChunk * kRecordBytes);
+    for (std::size_t i = 0; i < n; ++i) {
+      for (int a = 0; a < 3; ++a)
+        put_le(buf, std::bit_cast<std::uint32_t>(float(frame.position[i][a])));
+      for (int a = 0; a < 3; ++a)
+        put_le(buf, std::bit_cast<std::uint32_t>(float(frame.velocity[i][a])));
+      put_le(buf, frame.object_id[i]);
+      put_le(buf, std::bit_cast<std::uint32_t>(float(frame.J[i])));
+      if (buf.size() >= kChunk * kRecordBytes || i + 1 == n) {
+        out.write(buf.data(), static_cast<std::streamsize>(buf.size()));
+        buf.clear();
+      }
+    }
+    out.close();
+    if (!out) {
+      std::error_code ignore;
+      std::filesystem::remove(tmp, ignore);
+      throw std::runtime_error("cannot write '" + tmp.string() + "'");
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, file, ec);
+  if (ec) throw std::runtime_error("cannot rename '" + tmp.string() + "': " + ec.message());
+}
+
+PlyPoints read_ply(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot open PLY file '" + file.string() + "'");
+  const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) bad(file, "read error");
+
+  // The header: lines up to and including "end_header\n".
+  std::size_t pos = 0;
+  auto next_line = [&]() {
+    const std::size_t end = data.find('\n', pos);
+    if (end == std::string::npos) bad(file, "header ends early");
+    std::string line = data.substr(pos, end - pos);
+    pos = end + 1;
+    return line;
+  };
+  auto expect = [&](const std::string& want) {
+    const std::string line = next_line();
+    if (line != want) bad(file, "expected '" + want + "' in the header, found '" + line + "'");
+  };
+  auto value_after = [&](const std::string& prefix) {
+    const std::string line = next_line();
+    if (line.rfind(prefix, 0) != 0)
+      bad(file, "expected '" + prefix + "...' in the header, found '" + line + "'");
+    return line.substr(prefix.size());
+  };
+
+  PlyPoints p;
+  expect("ply");
+  expect("format binary_little_endian 1.0");
+  p.time = parse_all<double>(file, value_after("comment time "), "time");
+  p.frame = parse_all<int>(file, value_after("comment frame "), "frame");
+  const auto n = parse_all<std::size_t>(file, value_after("element vertex "), "vertex count");
+  for (const char* prop : kProperties) expect(prop);
+  expect("end_header");
+
+  const std::size_t body = data.size() - pos;
+  if (n > body / kRecordBytes || body != n * kRecordBytes)
+    bad(file, std::to_string(n) + " vertices need " + std::to_string(n * kRecordBytes) +
+                  " bytes after the header, found " + std::to_string(body));
+
+  p.position.resize(3 * n);
+  p.velocity.resize(3 * n);
+  p.object_id.resize(n);
+  p.J.resize(n);
+  const char* r = data.data() + pos;
+  for (std::size_t i = 0; i < n; ++i, r += kRecordBytes) {
+    for (int a = 0; a < 3; ++a) p.position[3 * i + a] = std::bit_cast<float>(get_le(r + 4 * a));
+    for (int a = 0; a < 3; ++a)
+      p.velocity[3 * i + a] = std::bit_cast<float>(get_le(r + 12 + 4 * a));
+    p.object_id[i] = std::bit_cast<std::int32_t>(get_le(r + 24));
+    p.J[i] = std::bit_cast<float>(get_le(r + 28));
+  }
+  return p;
+}
+
+}  // namespace mpm

@@ -1,0 +1,36 @@
+#pragma once
+/// \file Binary PLY point clouds, one vertex per particle (Blender, MeshLab, CloudCompare).
+
+#include <cstddef>
+#include <filesystem>
+#include <vector>
+
+#include "engine/io/frame_view.h"
+
+namespace mpm {
+
+/// Writes `frame` as a binary_little_endian PLY 1.0 point cloud: element vertex N with float x,
+/// y, z, float vx, vy, vz, int object_id, float J, and header comments "time T" and "frame F".
+/// Writes `<file>.tmp` and renames it, so the file is whole or absent. Throws
+/// std::invalid_argument if the spans differ in length or an object id exceeds INT32_MAX,
+/// std::runtime_error if the file cannot be written.
+void write_ply(const std::filesystem::path& file, const FrameView& frame);
+
+/// A PLY file read back: the vertex properties write_ply writes.
+struct PlyPoints {
+  std::vector<float> position;  ///< N x 3, row-major.
+  std::vector<float> velocity;  ///< N x 3, row-major.
+  std::vector<int> object_id;   ///< N.
+  std::vector<float> J;         ///< N.
+  double time = 0;              ///< Header comment "time", s.
+  int frame = 0;                ///< Header comment "frame".
+
+  /// Number of particles.
+  std::size_t size() const { return object_id.size(); }
+};
+
+/// Reads a file written by write_ply. Throws std::runtime_error if the file cannot be read or
+/// its header or size differs in any way from what write_ply writes.
+PlyPoints read_ply(const std::filesystem::path& file);
+
+}  // namespace mpm

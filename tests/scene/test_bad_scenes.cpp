@@ -1,0 +1,180 @@
+// Table of malformed scenes: each runs `mpm validate` (or `mpm run`) and must exit with the
+// documented code and a message that names the place and the problem. Never a crash.
+#include <catch2/catch.hpp>
+
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <sys/wait.h>
+
+#include "support/helpers.h"
+
+namespace {
+
+const char* kBase = R"(simulation:
+  frames: 2
+  dt: 1.0e-3
+grid:
+  max: [1, 1, 1]
+  dims: 20
+objects:
+  - name: a
+    mesh: MESH
+    scale: 0.2
+    offset: [0.5, 0.5, 0.5]
+    mass: 1
+    material: corotated
+    E: 1.0e4
+    nu: 0.3
+walls:
+  - plane: {point: [0, 0.2, 0], normal: [0, 1, 0]}
+    boundary: slip
+)";
+
+struct BadScene {
+  const char* name;
+  const char* find;     ///< Text of kBase to replace ("" appends `replace` at the end).
+  const char* replace;  ///< Replacement text.
+  std::vector<std::string> words;  ///< Each must appear in the message.
+};
+
+std::string replace_all(std::string s, const std::string& a, const std::string& b) {
+  for (std::size_t p = s.find(a); p != std::string::npos; p = s.find(a, p + b.size()))
+    s.replace(p, a.size(), b);
+  return s;
+}
+
+/// Runs `mpm ARGS`, returning the exit code and what it printed on stderr.
+std::pair<int, std::string> run_mpm(const std::string& args, const std::filesystem::path& dir) {
+  const auto err = dir / "stderr.txt";
+  const std::string cmd = std::string(MPM_BINARY) + " " + args + " > /dev/null 2> " + err.string();
+  const int status = std::system(cmd.c_str());
+  std::ifstream in(err);
+  std::stringstream text;
+  text << in.rdbuf();
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
+}
+
+}  // namespace
+
+TEST_CASE("malformed scenes exit with code 2 and say where and what", "[scene]") {
+  const auto dir = mpm::test::temp_dir("bad_scenes");
+  const std::string mesh = mpm::test::cube_mesh();
+  std::ofstream(dir / "open.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n";
+  std::ofstream(dir / "garbage.obj") << "this is not a mesh\n";
+  std::ofstream(dir / "empty.obj") << "";
+  const std::vector<BadScene> cases = {
+      {"yaml syntax", "dims: 20", "dims: [20, 20", {"YAML syntax error", "bad.yaml:"}},
+      {"tab indentation", "  frames: 2", "\tframes: 2", {"YAML syntax error"}},
+      {"unknown key typo", "  frames: 2", "  frams: 2", {"bad.yaml:2:3", "did you mean 'frames'"}},
+      {"unknown object key", "    E: 1.0e4", "    E: 1.0e4\n    youngs_modulus: 3", {"objects[0].youngs_modulus", "unknown key"}},
+      {"unknown top-level section", "", "output_dir: x\n", {"unknown key 'output_dir'", "did you mean 'output'"}},
+      {"wrong type: number", "  dt: 1.0e-3", "  dt: fast", {"simulation.dt", "expected a number, found 'fast'"}},
+      {"wrong type: list", "    offset: [0.5, 0.5, 0.5]", "    offset: 0.5", {"objects[0].offset", "list of three"}},
+      {"wrong type: integer", "  frames: 2", "  frames: 2.5", {"simulation.frames", "whole number"}},
+      {"list of two", "  max: [1, 1, 1]", "  max: [1, 1]", {"grid.max", "three numbers"}},
+      {"missing grid", "grid:\n  max: [1, 1, 1]\n  dims: 20\n", "", {"missing required key 'grid'"}},
+      {"missing material", "    material: corotated\n", "", {"objects[0]", "missing required key 'material'"}},
+      {"missing E", "    E: 1.0e4\n", "", {"objects[0].E", "missing required key 'E'"}},
+      {"E zero", "E: 1.0e4", "E: 0", {"objects[0].E", "out of range", "> 0"}},
+      {"nu too large", "nu: 0.3", "nu: 0.5", {"objects[0].nu", "(-1, 0.5)"}},
+      {"nu too small", "nu: 0.3", "nu: -1", {"objects[0].nu", "out of range"}},
+      {"negative mass", "mass: 1", "mass: -2", {"objects[0].mass", "out of range"}},
+      {"mass and density", "mass: 1", "mass: 1\n    density: 1000", {"not both"}},
+      {"neither mass nor density", "    mass: 1\n", "", {"'mass' (kg) or 'density'"}},
+      {"dims zero", "dims: 20", "dims: 0", {"grid.dims", "out of range"}},
+      {"buffer too large", "dims: 20", "dims: 20\n  buffer: 10", {"grid.buffer", "leaves no interior"}},
+      {"negative frames", "frames: 2", "frames: -1", {"simulation.frames", "out of range"}},
+      {"dt zero", "dt: 1.0e-3", "dt: 0", {"simulation.dt", "out of range"}},
+      {"cfl above one", "dt: 1.0e-3", "cfl: 1.5", {"simulation.cfl", "(0, 1]"}},
+      {"no time step", "  dt: 1.0e-3\n", "", {"'dt'", "'cfl'"}},
+      {"particles per cell zero", "    mass: 1", "    mass: 1\n    particles_per_cell: 0", {"particles_per_cell", "out of range"}},
+      {"zero wall normal", "normal: [0, 1, 0]", "normal: [0, 0, 0]", {"walls[0].plane.normal", "must not be zero"}},
+      {"box min above max", "  - plane: {point: [0, 0.2, 0], normal: [0, 1, 0]}", "  - box: {min: [0.5, 0, 0], max: [0.4, 1, 1]}", {"walls[0].box.max", "exceed"}},
+      {"plane and box", "    boundary: slip", "    box: {min: [0, 0, 0], max: [1, 1, 1]}\n    boundary: slip", {"exactly one of 'plane' or 'box'"}},
+      {"unknown boundary", "boundary: slip", "boundary: sticy", {"walls[0].boundary", "sticky, slip or separate"}},
+      {"unknown transfer", "dt: 1.0e-3", "dt: 1.0e-3\n  transfer: mls", {"simulation.transfer", "apic, pic or flip"}},
+      {"unknown material", "material: corotated", "material: jelly", {"unknown material 'jelly'", "corotated", "neo_hookean", "snow"}},
+      {"material key of another material", "    E: 1.0e4", "    E: 1.0e4\n    hardening: 3", {"objects[0].hardening", "unknown key"}},
+      {"missing mesh", "mesh: MESH", "mesh: nowhere.obj", {"bad.yaml:9:11", "objects[0].mesh", "does not exist"}},
+      {"open mesh", "mesh: MESH", "mesh: OPEN", {"objects[0].mesh", "not closed"}},
+      {"unparsable mesh", "mesh: MESH", "mesh: GARBAGE", {"objects[0].mesh", "garbage.obj", "no triangles"}},
+      {"empty mesh", "mesh: MESH", "mesh: EMPTY", {"objects[0].mesh"}},
+      {"object outside the grid", "offset: [0.5, 0.5, 0.5]", "offset: [0.95, 0.5, 0.5]", {"objects[0]", "outside the grid interior"}},
+      {"object in the buffer", "offset: [0.5, 0.5, 0.5]", "offset: [0.5, 0.14, 0.5]", {"outside the grid interior"}},
+      {"object that samples nothing", "scale: 0.2", "scale: 0.001", {"samples zero particles"}},
+      {"duplicate object names", "walls:", "  - {name: a, mesh: MESH, scale: 0.1, offset: [0.3, 0.3, 0.3], mass: 1, material: corotated, E: 1.0e4, nu: 0.3}\nwalls:", {"objects[1].name", "used twice"}},
+      {"no objects", "objects:", "objects: []\nunused:", {"objects"}},
+      {"plugin that is missing", "", "plugins: [libnothing.so]\n", {"plugins[0]", "no such file"}},
+      {"grid too large for memory", "dims: 20", "dims: 100000", {"grid.dims", "GB of memory"}},
+      {"a list where a mapping belongs", "simulation:\n  frames: 2\n  dt: 1.0e-3\n", "simulation: [1, 2]\n", {"simulation", "expected a mapping"}},
+      {"scene that is not a mapping", "", "- just a list\n", {"bad.yaml"}},
+  };
+  REQUIRE(cases.size() >= 30);
+  for (const BadScene& c : cases) {
+    INFO("case: " << c.name);
+    std::string yaml = kBase;
+    if (std::string(c.find).empty()) {
+      yaml += c.replace;
+    } else {
+      REQUIRE(yaml.find(c.find) != std::string::npos);
+      yaml = replace_all(yaml, c.find, c.replace);
+    }
+    if (std::string(c.name) == "scene that is not a mapping") yaml = c.replace;
+    yaml = replace_all(yaml, "MESH", mesh);
+    yaml = replace_all(yaml, "OPEN", (dir / "open.obj").string());
+    yaml = replace_all(yaml, "GARBAGE", (dir / "garbage.obj").string());
+    yaml = replace_all(yaml, "EMPTY", (dir / "empty.obj").string());
+    std::ofstream(dir / "bad.yaml") << yaml;
+    const auto [code, message] = run_mpm("validate " + (dir / "bad.yaml").string(), dir);
+    INFO("message: " << message);
+    CHECK(code == 2);
+    CHECK(message.rfind("error: ", 0) == 0);
+    for (const std::string& w : c.words) CHECK(message.find(w) != std::string::npos);
+  }
+}
+
+TEST_CASE("bad command lines and overrides exit with code 2", "[scene]") {
+  const auto dir = mpm::test::temp_dir("bad_cli");
+  const std::string scene = (mpm::test::source_dir() / "scenes/jello_cube.yaml").string();
+  struct Cli {
+    std::string args;
+    std::vector<std::string> words;
+  };
+  const std::vector<Cli> cases = {
+      {"", {"no command"}},
+      {"fly " + scene, {"unknown command 'fly'"}},
+      {"run", {"needs a scene file"}},
+      {"run " + scene + " --frames x", {"--frames expects a whole number"}},
+      {"run " + scene + " --threads 0", {"--threads expects a whole number >= 1"}},
+      {"run " + scene + " --bogus", {"unknown option '--bogus'"}},
+      {"validate " + scene + " --set grid.dims", {"expected KEY=VALUE"}},
+      {"validate " + scene + " --set objects[0].nu=0.7", {"(--set)", "objects[0].nu", "out of range"}},
+      {"validate " + scene + " --set objects[3].E=1", {"has no entry [3]"}},
+      {"validate " + scene + " --set simulation.frams=3", {"did you mean 'frames'"}},
+      {"validate /nonexistent/scene.yaml", {"/nonexistent/scene.yaml", "no such file"}},
+      {"run " + scene + " --out /proc/forbidden", {"--out", "cannot create output folder"}},
+  };
+  for (const Cli& c : cases) {
+    INFO("mpm " << c.args);
+    const auto [code, message] = run_mpm(c.args, dir);
+    INFO("message: " << message);
+    CHECK(code == 2);
+    for (const std::string& w : c.words) CHECK(message.find(w) != std::string::npos);
+  }
+}
+
+TEST_CASE("overrides change the scene like the file would", "[scene]") {
+  mpm::MaterialRegistry registry = mpm::builtin_registry();
+  mpm::LoadOptions options;
+  options.overrides = {mpm::parse_override("grid.dims=64"),
+                       mpm::parse_override("objects[0].E=2e4"),
+                       mpm::parse_override("simulation.gravity=[0, 0, 0]"),
+                       mpm::parse_override("simulation.cfl=0.4")};
+  const mpm::SceneDesc s =
+      mpm::load_scene(mpm::test::source_dir() / "scenes/jello_cube.yaml", registry, options);
+  CHECK(s.grid.dims == mpm::Vec3i(64, 64, 64));
+  CHECK(s.objects[0].params.at("E") == Approx(2e4));
+  CHECK(s.simulation.gravity.norm() == 0);
+  CHECK(s.simulation.cfl == Approx(0.4));
+}
