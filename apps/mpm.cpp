@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -31,11 +32,15 @@ Usage:
   mpm materials [SCENE.yaml | PLUGIN.so]
                                  list every registered material (and a scene's or a file's
                                  plugins) with its keys, units, defaults and ranges
+  mpm preview DIR [--fps N]      join DIR/preview/frame_*.png into DIR/preview.mp4 (ffmpeg)
   mpm --help | --version
 
 Options of run:
   --out DIR          write frames and report.yaml to DIR (default: the scene's output.directory)
   --force            replace the results of an earlier run in the output folder
+  --resume DIR       continue the run in DIR from its last complete frame (checkpoint.h5)
+  --format LIST      formats to write, e.g. hdf5,png (hdf5, bgeo, ply, png; default: the
+                     scene's output.formats, else hdf5)
   --frames N         simulate N frames instead of the scene's simulation.frames
   --set KEY=VALUE    override a scene value, e.g. --set grid.dims=64 --set objects[0].E=2e4
                      (repeatable; checked like the file)
@@ -50,8 +55,8 @@ Ctrl-C or SIGTERM stops a run after the current substep.
 
 /// The command line.
 struct Args {
-  std::string command, scene, out, log_level = "info";
-  std::optional<int> frames, threads;
+  std::string command, scene, out, resume, formats, log_level = "info";
+  std::optional<int> frames, threads, fps;
   std::vector<std::string> sets;
   bool quiet = false, force = false;
 };
@@ -95,6 +100,12 @@ Args parse_args(int argc, char** argv) {
       a.threads = parse_count(w, value(), 1);
     } else if (w == "--set") {
       a.sets.push_back(value());
+    } else if (w == "--resume") {
+      a.resume = value();
+    } else if (w == "--format") {
+      a.formats = value();
+    } else if (w == "--fps") {
+      a.fps = parse_count(w, value(), 1);
     } else if (w == "--force") {
       a.force = true;
     } else if (w == "--quiet") {
@@ -157,6 +168,28 @@ int main(int argc, char** argv) {
     }
     return list_materials(registry);
   }
+  if (args.command == "preview") {
+    if (args.scene.empty()) usage_error("'mpm preview' needs an output folder");
+    const std::filesystem::path dir = args.scene;
+    if (!std::filesystem::is_directory(dir / "preview")) {
+      std::fprintf(stderr, "error: %s has no preview/ folder: run with --format png first\n",
+                   dir.c_str());
+      return mpm::kExitBadInput;
+    }
+    if (std::system("command -v ffmpeg > /dev/null 2>&1") != 0) {
+      std::fprintf(stderr, "error: ffmpeg is not installed (apt-get install ffmpeg); the PNG "
+                           "frames are in %s/preview/\n", dir.c_str());
+      return mpm::kExitRunFailed;
+    }
+    const std::string cmd = "ffmpeg -loglevel error -y -framerate " +
+                            std::to_string(args.fps.value_or(24)) + " -i '" +
+                            (dir / "preview" / "frame_%05d.png").string() +
+                            "' -pix_fmt yuv420p -vf 'scale=trunc(iw/2)*2:trunc(ih/2)*2' '" +
+                            (dir / "preview.mp4").string() + "'";
+    if (std::system(cmd.c_str()) != 0) return mpm::kExitRunFailed;
+    std::printf("%s\n", (dir / "preview.mp4").c_str());
+    return mpm::kExitOk;
+  }
   if (args.command != "run" && args.command != "validate")
     usage_error("unknown command '" + args.command + "'");
   if (args.scene.empty()) usage_error("'mpm " + args.command + "' needs a scene file");
@@ -165,13 +198,32 @@ int main(int argc, char** argv) {
   std::unique_ptr<mpm::Simulation> sim;
   mpm::SceneDesc scene;
   std::filesystem::path out;
+  int resumed_frame = 0;
   try {
     mpm::LoadOptions options;
     for (const std::string& s : args.sets) options.overrides.push_back(mpm::parse_override(s));
     scene = mpm::load_scene(args.scene, registry, options);
+    if (!args.formats.empty()) {
+      scene.output.formats.clear();
+      std::stringstream list(args.formats);
+      for (std::string name; std::getline(list, name, ',');) {
+        const auto f = mpm::format_from_name(name);
+        if (!f) throw mpm::SceneError({"--format"}, "", "unknown format '" + name +
+                                                            "'; expected hdf5, bgeo, ply or png");
+        scene.output.formats.push_back(*f);
+      }
+    }
     sim = mpm::Simulation::create(scene, registry);
-    out = args.out.empty() ? scene.output.directory : std::filesystem::path(args.out);
-    if (args.command == "run") {
+    out = !args.resume.empty() ? std::filesystem::path(args.resume)
+          : args.out.empty()   ? scene.output.directory
+                               : std::filesystem::path(args.out);
+    if (!args.resume.empty()) {
+      try {
+        resumed_frame = mpm::restore_checkpoint(out / "checkpoint.h5", *sim);
+      } catch (const std::exception& e) {
+        throw mpm::SceneError({"--resume"}, "", e.what());
+      }
+    } else if (args.command == "run") {
       try {
         mpm::prepare_output_directory(out, args.force);
       } catch (const std::exception& e) {
@@ -194,15 +246,17 @@ int main(int argc, char** argv) {
   if (!args.quiet) std::printf("%s", mpm::scene_summary(*sim).c_str());
   spdlog::info("{} particles, {} frames, output in {}", sim->particles().size(), frames,
                out.string());
+  if (resumed_frame > 0) spdlog::info("resuming from frame {}", resumed_frame);
 
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  mpm::FrameOutput output(out);
+  mpm::FrameOutput output(out, scene.output, resumed_frame);
   mpm::Progress progress(isatty(fileno(stderr)) != 0);
   std::vector<mpm::Observer*> observers{&output};
   if (!args.quiet) observers.push_back(&progress);
   const mpm::RunResult r =
-      mpm::run_frames(*sim, frames, scene.simulation.frame_dt, observers, &g_stop);
+      mpm::run_frames(*sim, frames, scene.simulation.frame_dt, observers, &g_stop,
+                      resumed_frame + 1);
 
   const double steps = static_cast<double>(sim->particles().size()) * sim->substeps();
   std::printf("%s: %s, %zu particles, %d frames, %zu substeps in %.1f s (%.2fM particle-steps/s)"

@@ -1,6 +1,8 @@
 #include "engine/load_scene.h"
 
+#include <cmath>
 #include <cstdlib>
+#include <algorithm>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -45,6 +47,9 @@ GridDesc read_grid(ParamReader r) {
   g.dims = r.require<Vec3i>("dims");
   g.loc = r.loc("dims");
   for (int a = 0; a < 3; ++a) r.check_range("dims", g.dims[a], 1, 1e5);
+  for (int a = 0; a < 3; ++a)
+    if (!std::isnormal(g.spacing()[a]))
+      r.fail("max", "the cell size (max - origin) / dims overflows or underflows");
   g.buffer = r.get_or("buffer", g.buffer);
   r.check_range("buffer", g.buffer, 2, 1e5);
   if (2 * g.buffer + 1 > g.dims.minCoeff())
@@ -72,8 +77,8 @@ WallDesc read_wall(ParamReader r) {
     ParamReader p = r.child("plane");
     w.point = p.require<Vec3>("point");
     w.normal = p.require<Vec3>("normal");
-    if (w.normal.norm() < 1e-12) p.fail("normal", "the normal must not be zero");
-    w.normal.normalize();
+    if (w.normal.stableNorm() < 1e-12) p.fail("normal", "the normal must not be zero");
+    w.normal.stableNormalize();  // stable: norm() of [1e300, 0, 0] overflows to inf
     p.finish();
   } else {
     w.shape = WallDesc::Shape::box;
@@ -128,6 +133,43 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
                          spec.max_exclusive);
     o.params[spec.name] = value;
   }
+  r.finish();
+  return o;
+}
+
+OutputDesc read_output(ParamReader r) {
+  OutputDesc o;
+  o.directory = r.get_or<std::string>("directory", "output");
+  o.loc = r.loc("directory");
+  if (r.has("formats")) {
+    o.formats.clear();
+    const YAML::Node list = r.sequence("formats");
+    if (list.size() == 0) r.fail("formats", "give at least one format: hdf5, bgeo, ply or png");
+    for (const auto& item : list) {
+      const auto f = item.IsScalar() ? format_from_name(item.Scalar()) : std::nullopt;
+      if (!f)
+        throw SceneError(node_loc(item, r.file()), r.key_path("formats"),
+                         "unknown format " + (item.IsScalar() ? "'" + item.Scalar() + "'" : "") +
+                             "; expected hdf5, bgeo, ply or png");
+      if (std::find(o.formats.begin(), o.formats.end(), *f) == o.formats.end())
+        o.formats.push_back(*f);
+    }
+  }
+  if (r.has("camera")) {
+    ParamReader c = r.child("camera");
+    CameraDesc cam;
+    cam.position = c.require<Vec3>("position");
+    cam.look_at = c.require<Vec3>("look_at");
+    cam.fov_deg = c.get_or("fov", cam.fov_deg);
+    c.check_range("fov", cam.fov_deg, 1, 170);
+    if ((cam.position - cam.look_at).norm() < 1e-9)
+      c.fail("look_at", "the camera must not look at its own position");
+    c.finish();
+    o.camera = cam;
+  }
+  o.preview_size = r.get_or("preview_size", o.preview_size);
+  for (int i = 0; i < 2; ++i) r.check_range("preview_size", o.preview_size[i], 16, 8192);
+  o.checkpoint = r.get_or("checkpoint", o.checkpoint);
   r.finish();
   return o;
 }
@@ -199,12 +241,7 @@ SceneDesc read_scene(const YAML::Node& root, const std::filesystem::path& file,
     scene.walls.push_back(
         read_wall(ParamReader(walls[i], fname, "walls[" + std::to_string(i) + "]")));
 
-  if (r.has("output")) {
-    ParamReader out = r.child("output");
-    scene.output.directory = out.get_or<std::string>("directory", "output");
-    scene.output.loc = out.loc("directory");
-    out.finish();
-  }
+  if (r.has("output")) scene.output = read_output(r.child("output"));
   r.finish();
   return scene;
 }
@@ -296,6 +333,14 @@ YAML::Node parse_yaml(const std::string& text, const std::string& fname) {
 }
 
 }  // namespace
+
+std::optional<Format> format_from_name(const std::string& name) {
+  if (name == "hdf5") return Format::hdf5;
+  if (name == "bgeo") return Format::bgeo;
+  if (name == "ply") return Format::ply;
+  if (name == "png") return Format::png;
+  return std::nullopt;
+}
 
 SceneOverride parse_override(const std::string& text) {
   const std::size_t eq = text.find('=');

@@ -2,6 +2,7 @@
 /// \file Reading a scene file into a validated SceneDesc.
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,9 @@ struct LoadOptions {
   std::vector<SceneOverride> overrides;  ///< Applied to the document before validation.
   bool load_plugins = true;              ///< False rejects any `plugins:` entry (fuzzing).
 };
+
+/// The format called `name` (hdf5, bgeo, ply, png), or std::nullopt.
+std::optional<Format> format_from_name(const std::string& name);
 
 /// Splits "KEY=VALUE" into a SceneOverride; throws SceneError if there is no '='.
 SceneOverride parse_override(const std::string& text);

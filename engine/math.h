@@ -14,5 +14,7 @@ using Vec3 = Eigen::Matrix<Real, 3, 1>;
 using Mat3 = Eigen::Matrix<Real, 3, 3>;
 /// A 3-vector of integer grid indices.
 using Vec3i = Eigen::Vector3i;
+/// A 2-vector of integers (image sizes).
+using Vec2i = Eigen::Vector2i;
 
 }  // namespace mpm

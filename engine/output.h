@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "engine/run.h"
+#include "engine/scene_desc.h"
 
 namespace mpm {
 
@@ -37,11 +38,21 @@ std::filesystem::path frame_path(const std::filesystem::path& dir, int frame);
 /// `force`, which deletes them first.
 void prepare_output_directory(const std::filesystem::path& dir, bool force);
 
-/// Writes frame 0 at the start, every completed frame, and report.yaml at the end.
+/// Writes the state a run needs to continue bit for bit (x, v, F, C, material state, time,
+/// substeps, frame) in double precision to `file` (temporary name, then rename).
+void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, int frame);
+
+/// Restores a checkpoint into `sim`, built from the same scene; returns its frame. Throws
+/// std::runtime_error if the file is unreadable or does not match the simulation.
+int restore_checkpoint(const std::filesystem::path& file, Simulation& sim);
+
+/// Writes each frame in the scene's formats (HDF5 with an XDMF index, bgeo, PLY, PNG
+/// previews), a checkpoint after each frame, and report.yaml at the end.
 class FrameOutput : public Observer {
  public:
-  /// Output into `dir`, created if missing.
-  explicit FrameOutput(std::filesystem::path dir);
+  /// Output into `dir` as `desc` asks; `resumed_frame` > 0 continues a run from that frame
+  /// (its files are kept and frame 0 is not rewritten).
+  FrameOutput(std::filesystem::path dir, const OutputDesc& desc, int resumed_frame = 0);
   void on_start(const Simulation& sim, int frames) override;
   void on_frame(const Simulation& sim, int frame) override;
   void on_finish(const Simulation& sim, const RunResult& result) override;
@@ -51,9 +62,11 @@ class FrameOutput : public Observer {
  private:
   void write(const Simulation& sim, int frame);
   std::filesystem::path dir_;
-  int frames_written_ = 0;
+  OutputDesc desc_;
+  int resumed_frame_ = 0;
   int last_frame_ = -1;
   double seconds_ = 0;
+  std::vector<Real> J_;  // scratch: det F per particle
 };
 
 }  // namespace mpm

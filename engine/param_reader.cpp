@@ -190,6 +190,13 @@ Vec3i convert<Vec3i>(const YAML::Node& n, const ParamReader& r, const std::strin
   return v;
 }
 
+template <>
+Vec2i convert<Vec2i>(const YAML::Node& n, const ParamReader& r, const std::string& key) {
+  if (!n.IsSequence() || n.size() != 2)
+    r.fail(key, "expected a list of two whole numbers, found " + describe(n));
+  return Vec2i(convert<int>(n[0], r, key), convert<int>(n[1], r, key));
+}
+
 }  // namespace
 
 template <class T>
@@ -211,6 +218,7 @@ template std::optional<bool> ParamReader::get<bool>(const std::string&);
 template std::optional<std::string> ParamReader::get<std::string>(const std::string&);
 template std::optional<Vec3> ParamReader::get<Vec3>(const std::string&);
 template std::optional<Vec3i> ParamReader::get<Vec3i>(const std::string&);
+template std::optional<Vec2i> ParamReader::get<Vec2i>(const std::string&);
 template double ParamReader::require<double>(const std::string&);
 template int ParamReader::require<int>(const std::string&);
 template std::string ParamReader::require<std::string>(const std::string&);

@@ -7,7 +7,8 @@
 namespace mpm {
 
 RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
-                     const std::vector<Observer*>& observers, const std::atomic<bool>* stop) {
+                     const std::vector<Observer*>& observers, const std::atomic<bool>* stop,
+                     int first_frame) {
   using clock = std::chrono::steady_clock;
   const auto start = clock::now();
   RunResult result;
@@ -15,9 +16,9 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
   const bool adaptive = sim.scene().simulation.cfl.has_value();
   try {
     for (Observer* o : observers) o->on_start(sim, frames);
-    const Real t0 = sim.time();
-    for (int f = 1; f <= frames && result.status == "ok"; ++f) {
-      const Real frame_end = t0 + f * frame_dt;
+    result.frames_done = first_frame - 1;
+    for (int f = first_frame; f <= frames && result.status == "ok"; ++f) {
+      const Real frame_end = f * frame_dt;
       // A whole number of equal substeps fills the frame, each no larger than the bound.
       int remaining_steps = 0;
       Real dt = 0;

@@ -77,10 +77,24 @@ struct WallDesc {
   FileLoc loc;                     ///< Where the wall starts in the scene file.
 };
 
+/// File formats a run can write per frame.
+enum class Format { hdf5, bgeo, ply, png };
+
+/// A camera for PNG previews.
+struct CameraDesc {
+  Vec3 position{0.5, 0.7, 2.5};  ///< Eye position, m.
+  Vec3 look_at{0.5, 0.4, 0.5};   ///< Point at the image centre, m.
+  double fov_deg = 40;           ///< Vertical field of view, degrees.
+};
+
 /// Where and what to write.
 struct OutputDesc {
   std::filesystem::path directory = "output";  ///< Frame folder (absolute or cwd-relative).
   FileLoc loc;                                 ///< Where the directory is written.
+  std::vector<Format> formats{Format::hdf5};   ///< Formats written per frame.
+  std::optional<CameraDesc> camera;            ///< PNG camera; default frames the grid.
+  Vec2i preview_size{640, 480};                ///< PNG width and height, pixels.
+  bool checkpoint = true;                      ///< Keep DIR/checkpoint.h5 for --resume.
 };
 
 /// A whole scene, validated.

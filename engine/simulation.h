@@ -64,6 +64,8 @@ class Simulation {
   const std::vector<ObjectInfo>& objects() const { return objects_; }
   /// The material of each particle range.
   const std::vector<MaterialRange>& materials() const { return materials_; }
+  /// The material of each particle range (for restoring checkpointed state).
+  std::vector<MaterialRange>& materials() { return materials_; }
   /// The stages of a substep, in order.
   const std::vector<Stage>& stages() const { return stages_; }
   /// The scene this simulation was built from.
@@ -75,6 +77,8 @@ class Simulation {
   void set_time(Real t) { time_ = t; }
   /// Substeps taken so far.
   std::size_t substeps() const { return substeps_; }
+  /// Sets the substep count (when restoring a checkpoint).
+  void set_substeps(std::size_t n) { substeps_ = n; }
   /// Particles with a NaN or infinite position after the last substep.
   std::size_t nonfinite_particles() const { return last_advect_.nonfinite; }
   /// Particles clamped back into the grid interior, over the whole run.

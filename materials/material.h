@@ -73,6 +73,10 @@ class MaterialGroup {
 
   /// Total elastic energy (J) stored in the range: sum of V0 * psi(F).
   virtual Real elastic_energy(std::span<const Mat3> F, std::span<const Real> volume0) const = 0;
+
+  /// Per-particle state beyond F (e.g. plastic Jp), flat; empty if none. Checkpoints save and
+  /// restore it through this view, so a resumed run continues bit for bit.
+  virtual std::span<Real> state() { return {}; }
 };
 
 /// A registered material: its name, parameter table and factory.

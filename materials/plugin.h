@@ -13,7 +13,7 @@
 namespace mpm {
 
 /// Bumped whenever MaterialInfo, MaterialGroup or MaterialRegistry change layout.
-inline constexpr int kPluginAbiVersion = 1;
+inline constexpr int kPluginAbiVersion = 2;
 
 /// A plugin that cannot be used. The message names the file and the reason.
 class PluginError : public std::runtime_error {

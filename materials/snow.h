@@ -76,6 +76,8 @@ class SnowGroup final : public MaterialGroup {
     return e;
   }
 
+  std::span<Real> state() override { return Jp_; }
+
   /// Plastic volume ratio Jp of each particle in the group.
   const std::vector<Real>& Jp() const { return Jp_; }
   /// Mutable Jp, for tests and restarts.

@@ -1,0 +1,126 @@
+// Output formats through `mpm run`, resume bit for bit, and a clean stop on SIGINT.
+#include <catch2/catch.hpp>
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <thread>
+
+#include <yaml-cpp/yaml.h>
+
+#include "engine/io/ply.h"
+#include "engine/output.h"
+#include "support/helpers.h"
+
+using namespace mpm;
+
+namespace {
+
+/// A small scene with an elastic and a plastic object (so material state is checkpointed).
+std::filesystem::path small_scene(const std::filesystem::path& dir) {
+  const std::string cube = test::cube_mesh();
+  std::ofstream(dir / "scene.yaml") << "simulation: {frames: 4, frame_dt: 0.02, cfl: 0.5, dt: 2.0e-3}\n"
+                                       "grid: {max: [1, 1, 1], dims: 24}\n"
+                                       "objects:\n"
+                                       "  - {name: jelly, mesh: " + cube + ", scale: 0.25, offset: [0.3, 0.3, 0.5],\n"
+                                       "     velocity: [1, -2, 0], density: 500, material: corotated, E: 2.0e4, nu: 0.3}\n"
+                                       "  - {name: snow, mesh: " + cube + ", scale: 0.25, offset: [0.7, 0.3, 0.5],\n"
+                                       "     velocity: [-1, -2, 0], density: 400, material: snow, E: 1.0e4, nu: 0.2}\n"
+                                       "walls:\n"
+                                       "  - plane: {point: [0, 0.15, 0], normal: [0, 1, 0]}\n"
+                                       "    boundary: sticky\n";
+  return dir / "scene.yaml";
+}
+
+int run_mpm(const std::string& args) {
+  const int status = std::system((std::string(MPM_BINARY) + " " + args + " > /dev/null 2>&1").c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+}  // namespace
+
+TEST_CASE("every output format is written for every frame", "[regression]") {
+  const auto dir = test::temp_dir("formats");
+  const auto scene = small_scene(dir);
+  REQUIRE(run_mpm("run " + scene.string() + " --frames 2 --quiet --format hdf5,bgeo,ply,png --out " +
+              (dir / "out").string()) == 0);
+  for (int f = 0; f <= 2; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%05d", f);
+    INFO(name);
+    CHECK(std::filesystem::exists(dir / "out" / (std::string(name) + ".h5")));
+    CHECK(std::filesystem::exists(dir / "out" / (std::string(name) + ".bgeo")));
+    CHECK(std::filesystem::exists(dir / "out" / "preview" / (std::string(name) + ".png")));
+    // The PLY holds the same particles as the HDF5 frame.
+    const FrameData h5 = read_frame_hdf5(dir / "out" / (std::string(name) + ".h5"));
+    const PlyPoints ply = read_ply(dir / "out" / (std::string(name) + ".ply"));
+    CHECK(ply.position == h5.position);
+    CHECK(ply.object_id == h5.object_id);
+  }
+  const std::string xmf = [&] {
+    std::ifstream in(dir / "out" / "frames.xmf");
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }();
+  CHECK(xmf.find("frame_00002.h5:/position") != std::string::npos);
+}
+
+TEST_CASE("a resumed run equals an uninterrupted one bit for bit", "[regression]") {
+  const auto dir = test::temp_dir("resume");
+  const auto scene = small_scene(dir);
+  const std::string a = (dir / "a").string(), b = (dir / "b").string();
+  REQUIRE(run_mpm("run " + scene.string() + " --frames 4 --quiet --out " + a) == 0);
+  REQUIRE(run_mpm("run " + scene.string() + " --frames 2 --quiet --out " + b) == 0);
+  REQUIRE(run_mpm("run " + scene.string() + " --frames 4 --quiet --resume " + b) == 0);
+  for (int f = 3; f <= 4; ++f) {
+    INFO("frame " << f);
+    const FrameData x = read_frame_hdf5(frame_path(a, f)), y = read_frame_hdf5(frame_path(b, f));
+    CHECK(x.position == y.position);
+    CHECK(x.velocity == y.velocity);
+    CHECK(x.J == y.J);
+    CHECK(x.time == y.time);
+  }
+  const YAML::Node ra = YAML::LoadFile(a + "/report.yaml"), rb = YAML::LoadFile(b + "/report.yaml");
+  CHECK(ra["substeps"].as<std::size_t>() == rb["substeps"].as<std::size_t>());
+  CHECK(rb["frames"].as<int>() == 4);
+  // Without --force a finished folder is not overwritten.
+  CHECK(run_mpm("run " + scene.string() + " --frames 1 --quiet --out " + a) == 2);
+  CHECK(run_mpm("run " + scene.string() + " --frames 1 --quiet --force --out " + a) == 0);
+  CHECK_FALSE(std::filesystem::exists(frame_path(a, 2)));
+}
+
+TEST_CASE("SIGINT stops a run cleanly: frames whole, report says interrupted", "[regression]") {
+  const auto dir = test::temp_dir("interrupt");
+  const auto scene = small_scene(dir);
+  const std::string out = (dir / "out").string();
+  const pid_t pid = fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    const std::string log = (dir / "log.txt").string();
+    freopen(log.c_str(), "w", stdout);
+    freopen(log.c_str(), "a", stderr);
+    execl(MPM_BINARY, MPM_BINARY, "run", scene.c_str(), "--frames", "100000", "--out",
+          out.c_str(), "--quiet", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  // Wait until a few frames exist, then interrupt.
+  for (int i = 0; i < 600 && !std::filesystem::exists(frame_path(out, 3)); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  REQUIRE(std::filesystem::exists(frame_path(out, 3)));
+  kill(pid, SIGINT);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  REQUIRE(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 1);
+  const YAML::Node report = YAML::LoadFile(out + "/report.yaml");
+  CHECK(report["status"].as<std::string>() == "interrupted");
+  const int frames = report["frames"].as<int>();
+  CHECK(frames >= 3);
+  for (int f = 0; f <= frames; ++f) CHECK_NOTHROW(read_frame_hdf5(frame_path(out, f)));
+  CHECK_FALSE(std::filesystem::exists(frame_path(out, frames + 1)));
+  // And the interrupted run resumes.
+  CHECK(run_mpm("run " + scene.string() + " --frames " + std::to_string(frames + 1) +
+            " --quiet --resume " + out) == 0);
+}
