@@ -18,6 +18,7 @@
 #include "engine/progress.h"
 #include "engine/run.h"
 #include "engine/simulation.h"
+#include "engine/summary.h"
 #include "engine/validate.h"
 #include "materials/plugin.h"
 
@@ -33,6 +34,11 @@ Usage:
                                  list every registered material (and a scene's or a file's
                                  plugins) with its keys, units, defaults and ranges
   mpm preview DIR [--fps N]      join DIR/preview/frame_*.png into DIR/preview.mp4 (ffmpeg)
+  mpm golden SCENE.yaml --frames N -o FILE
+                                 run N frames and write the run summary to FILE (a golden)
+  mpm compare A B [--tol QUANTITY=VALUE ...]
+                                 compare two runs (output folders or summary files), B being
+                                 the reference; exit 0 within tolerance, 1 not, 2 bad input
   mpm --help | --version
 
 Options of run:
@@ -55,7 +61,8 @@ Ctrl-C or SIGTERM stops a run after the current substep.
 
 /// The command line.
 struct Args {
-  std::string command, scene, out, resume, formats, log_level = "info";
+  std::string command, scene, second, out, resume, formats, output_file, log_level = "info";
+  std::vector<std::string> tols;
   std::optional<int> frames, threads, fps;
   std::vector<std::string> sets;
   bool quiet = false, force = false;
@@ -100,6 +107,10 @@ Args parse_args(int argc, char** argv) {
       a.threads = parse_count(w, value(), 1);
     } else if (w == "--set") {
       a.sets.push_back(value());
+    } else if (w == "--tol") {
+      a.tols.push_back(value());
+    } else if (w == "-o") {
+      a.output_file = value();
     } else if (w == "--resume") {
       a.resume = value();
     } else if (w == "--format") {
@@ -118,6 +129,8 @@ Args parse_args(int argc, char** argv) {
       a.command = w;
     } else if (a.scene.empty()) {
       a.scene = w;
+    } else if (a.command == "compare" && a.second.empty()) {
+      a.second = w;
     } else {
       usage_error("unexpected argument '" + w + "'");
     }
@@ -190,7 +203,27 @@ int main(int argc, char** argv) {
     std::printf("%s\n", (dir / "preview.mp4").c_str());
     return mpm::kExitOk;
   }
-  if (args.command != "run" && args.command != "validate")
+  if (args.command == "compare") {
+    if (args.scene.empty() || args.second.empty()) usage_error("'mpm compare' needs A and B");
+    try {
+      const mpm::RunSummary a = mpm::read_summary(args.scene), b = mpm::read_summary(args.second);
+      const mpm::Tolerances tol =
+          mpm::parse_tolerance_overrides(mpm::default_tolerances(b), args.tols);
+      const mpm::CompareResult r = mpm::compare_summaries(a, b, tol);
+      if (!r.error.empty()) {
+        std::fprintf(stderr, "error: %s\n", r.error.c_str());
+        return mpm::kExitBadInput;
+      }
+      std::printf("%s", mpm::format_comparison(r).c_str());
+      return r.ok ? mpm::kExitOk : mpm::kExitRunFailed;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "error: %s\n", e.what());
+      return mpm::kExitBadInput;
+    }
+  }
+  if (args.command == "golden" && args.output_file.empty())
+    usage_error("'mpm golden' needs -o FILE");
+  if (args.command != "run" && args.command != "validate" && args.command != "golden")
     usage_error("unknown command '" + args.command + "'");
   if (args.scene.empty()) usage_error("'mpm " + args.command + "' needs a scene file");
 
@@ -223,6 +256,9 @@ int main(int argc, char** argv) {
       } catch (const std::exception& e) {
         throw mpm::SceneError({"--resume"}, "", e.what());
       }
+    } else if (args.command == "golden") {
+      out = std::filesystem::path(args.output_file).parent_path();
+      if (out.empty()) out = ".";
     } else if (args.command == "run") {
       try {
         mpm::prepare_output_directory(out, args.force);
@@ -251,8 +287,12 @@ int main(int argc, char** argv) {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   mpm::FrameOutput output(out, scene.output, resumed_frame);
+  mpm::SummaryWriter summary(out);
+  mpm::SummaryWriter golden(out, std::filesystem::path(args.output_file).filename().string());
   mpm::Progress progress(isatty(fileno(stderr)) != 0);
-  std::vector<mpm::Observer*> observers{&output};
+  std::vector<mpm::Observer*> observers;
+  if (args.command == "golden") observers = {&golden};
+  else observers = {&output, &summary};
   if (!args.quiet) observers.push_back(&progress);
   const mpm::RunResult r =
       mpm::run_frames(*sim, frames, scene.simulation.frame_dt, observers, &g_stop,

@@ -45,7 +45,9 @@ struct Grid {
 template <class Fn>
 void for_each_active_node(const Grid& g, Fn&& f) {
   const NodeRange r = g.active;
-#pragma omp parallel for schedule(static)
+  const long nodes = static_cast<long>(r.hi.x() - r.lo.x() + 1) * (r.hi.y() - r.lo.y() + 1) *
+                     (r.hi.z() - r.lo.z() + 1);
+#pragma omp parallel for schedule(static) if (nodes >= kParallelMinItems)
   for (int i = r.lo.x(); i <= r.hi.x(); ++i)
     for (int j = r.lo.y(); j <= r.hi.y(); ++j)
       for (int k = r.lo.z(); k <= r.hi.z(); ++k) f(i, j, k, g.index(i, j, k));

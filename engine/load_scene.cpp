@@ -6,6 +6,7 @@
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 
 #include "engine/param_reader.h"
 #include "materials/plugin.h"
@@ -91,6 +92,33 @@ WallDesc read_wall(ParamReader r) {
   }
   w.boundary = read_boundary(r);
   w.friction = r.get_or("friction", 0.0);
+  w.velocity = r.get_or("velocity", w.velocity);
+  const YAML::Node path = r.sequence("path");
+  if (path.size() > 0 && w.velocity.norm() > 0)
+    r.fail("path", "give a wall 'velocity' or a 'path', not both");
+  for (std::size_t k = 0; k < path.size(); ++k) {
+    const YAML::Node row = path[k];
+    auto bad = [&] {
+      throw SceneError(node_loc(row, r.file()), r.key_path("path") + "[" + std::to_string(k) + "]",
+                       "expected [t, dx, dy, dz]: a time (s) and an offset (m), times increasing");
+    };
+    if (!row.IsSequence() || row.size() != 4) bad();
+    double v[4];
+    for (int i = 0; i < 4; ++i) {
+      if (!row[i].IsScalar()) bad();
+      try {
+        std::size_t used = 0;
+        v[i] = std::stod(row[i].Scalar(), &used);
+        if (used != row[i].Scalar().size() || !std::isfinite(v[i])) bad();
+      } catch (const std::invalid_argument&) {
+        bad();
+      } catch (const std::out_of_range&) {
+        bad();
+      }
+    }
+    if (!w.path.empty() && v[0] <= w.path.back().t) bad();
+    w.path.push_back({v[0], Vec3(v[1], v[2], v[3])});
+  }
   r.check_range("friction", w.friction, 0, 1e300);
   r.finish();
   return w;
@@ -162,7 +190,7 @@ OutputDesc read_output(ParamReader r) {
     cam.look_at = c.require<Vec3>("look_at");
     cam.fov_deg = c.get_or("fov", cam.fov_deg);
     c.check_range("fov", cam.fov_deg, 1, 170);
-    if ((cam.position - cam.look_at).norm() < 1e-9)
+    if (!((cam.position - cam.look_at).stableNorm() >= 1e-9))
       c.fail("look_at", "the camera must not look at its own position");
     c.finish();
     o.camera = cam;
@@ -247,16 +275,19 @@ SceneDesc read_scene(const YAML::Node& root, const std::filesystem::path& file,
 }
 
 /// A copy of `n` whose nodes carry no file position, so errors about them say "--set".
-YAML::Node unplaced_copy(const YAML::Node& n) {
+/// Throws std::length_error past 64 levels or `budget` nodes: aliases can make a value endless
+/// (`&a [*a]`) or huge (a list of lists of one list ...).
+YAML::Node unplaced_copy(const YAML::Node& n, int& budget, int depth = 0) {
+  if (--budget < 0 || depth > 64) throw std::length_error("value too large");
   if (n.IsScalar()) return YAML::Node(n.Scalar());
   if (n.IsSequence()) {
     YAML::Node out(YAML::NodeType::Sequence);
-    for (const auto& e : n) out.push_back(unplaced_copy(e));
+    for (const auto& e : n) out.push_back(unplaced_copy(e, budget, depth + 1));
     return out;
   }
   if (n.IsMap()) {
     YAML::Node out(YAML::NodeType::Map);
-    for (const auto& kv : n) out[kv.first.Scalar()] = unplaced_copy(kv.second);
+    for (const auto& kv : n) out[kv.first.Scalar()] = unplaced_copy(kv.second, budget, depth + 1);
     return out;
   }
   return YAML::Node(YAML::NodeType::Null);
@@ -266,10 +297,13 @@ YAML::Node unplaced_copy(const YAML::Node& n) {
 void apply_override(YAML::Node root, const SceneOverride& o, const std::string& fname) {
   const FileLoc where{fname + " (--set " + o.key + "=" + o.value + ")"};
   YAML::Node value;
+  int budget = 10000;
   try {
-    value = unplaced_copy(YAML::Load(o.value));
+    value = unplaced_copy(YAML::Load(o.value), budget);
   } catch (const YAML::Exception& e) {
     throw SceneError(where, o.key, "the value is not valid YAML: " + e.msg);
+  } catch (const std::length_error&) {
+    throw SceneError(where, o.key, "the value is too deep or too large (an alias inside itself?)");
   }
   // Split "objects[1].E" into steps: "objects", 1, "E".
   YAML::Node node = root;

@@ -17,4 +17,8 @@ using Vec3i = Eigen::Vector3i;
 /// A 2-vector of integers (image sizes).
 using Vec2i = Eigen::Vector2i;
 
+/// Loops shorter than this run on one thread: for small scenes the cost of waking threads
+/// (and of waiting for one the OS has descheduled) outweighs the work.
+inline constexpr long kParallelMinItems = 8192;
+
 }  // namespace mpm

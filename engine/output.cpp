@@ -318,6 +318,16 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
   y << YAML::BeginMap;
   y << YAML::Key << "status" << YAML::Value << r.status;
   if (!r.message.empty()) y << YAML::Key << "message" << YAML::Value << r.message;
+  if (r.instability) {
+    const Instability& u = *r.instability;
+    y << YAML::Key << "instability" << YAML::Value << YAML::BeginMap;
+    y << YAML::Key << "cause" << YAML::Value << u.cause;
+    y << YAML::Key << "frame" << YAML::Value << u.frame;
+    y << YAML::Key << "substep" << YAML::Value << u.substep;
+    y << YAML::Key << "object" << YAML::Value << u.object;
+    y << YAML::Key << "suggested_dt" << YAML::Value << u.suggested_dt;
+    y << YAML::EndMap;
+  }
   y << YAML::Key << "scene" << YAML::Value << sim.scene().file.string();
   y << YAML::Key << "particles" << YAML::Value << n;
   y << YAML::Key << "frames" << YAML::Value << r.frames_done;
@@ -338,6 +348,15 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
   for (const Stage& s : sim.stages()) y << YAML::Key << s.name << YAML::Value << s.seconds;
   y << YAML::Key << "output" << YAML::Value << seconds_;
   y << YAML::EndMap;
+  y << YAML::Key << "energy_start" << YAML::Value << r.energy_start;
+  y << YAML::Key << "energy_max" << YAML::Value << r.energy_max;
+  y << YAML::Key << "frame_steps" << YAML::Value << YAML::BeginSeq;
+  for (const FrameSteps& f : r.steps)
+    y << YAML::Flow << YAML::BeginMap << YAML::Key << "frame" << YAML::Value << f.frame
+      << YAML::Key << "substeps" << YAML::Value << f.substeps << YAML::Key << "dt_min"
+      << YAML::Value << f.dt_min << YAML::Key << "dt_max" << YAML::Value << f.dt_max
+      << YAML::EndMap;
+  y << YAML::EndSeq;
   y << YAML::Key << "objects" << YAML::Value << YAML::BeginSeq;
   for (const ObjectInfo& o : sim.objects()) {
     y << YAML::BeginMap;

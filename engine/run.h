@@ -2,6 +2,7 @@
 /// \file The frame loop: substeps until each frame time, with observers between steps.
 
 #include <atomic>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -9,10 +10,31 @@
 
 namespace mpm {
 
+/// Substep sizes within one frame.
+struct FrameSteps {
+  int frame = 0;           ///< Frame number.
+  std::size_t substeps = 0;///< Substeps taken in the frame.
+  Real dt_min = 0;         ///< Smallest substep, s.
+  Real dt_max = 0;         ///< Largest substep, s.
+};
+
+/// Why a run was declared unstable.
+struct Instability {
+  std::string cause;        ///< What was measured, in words with numbers.
+  std::string object;       ///< Object of the offending particle ("" if none in particular).
+  int frame = 0;            ///< Frame being computed.
+  std::size_t substep = 0;  ///< Substep (counted from the start of the run).
+  Real suggested_dt = 0;    ///< dt the CFL bound (cfl 0.5) suggests, s.
+};
+
 /// How a run ended.
 struct RunResult {
   std::string status = "ok";  ///< ok | unstable | error | interrupted.
   std::string message;        ///< Why, when not ok.
+  std::optional<Instability> instability;  ///< Details when status is unstable.
+  std::vector<FrameSteps> steps;           ///< Substep sizes per frame.
+  Real energy_start = 0;      ///< Total energy at the start, J.
+  Real energy_max = 0;        ///< Largest total energy less wall work at a frame end, J.
   int frames_done = 0;        ///< Frames completed after the initial state.
   double wall_seconds = 0;    ///< Whole run including output.
   double loop_seconds = 0;    ///< Time inside substeps only.
@@ -33,6 +55,10 @@ class Observer {
   /// Once at the end, whatever the status.
   virtual void on_finish(const Simulation& sim, const RunResult& result) {}
 };
+
+/// Total energy may not exceed its start by more than this fraction (plus round-off) when
+/// nothing does work on the bodies: explicit MPM only dissipates when it is stable.
+inline constexpr Real kEnergyGrowthLimit = 0.5;
 
 /// Runs frames first_frame..frames, frame f ending at time f * frame_dt (the state is at frame
 /// first_frame - 1 on entry: 0 for a new run, the checkpoint's frame when resuming). An observer

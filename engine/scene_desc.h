@@ -64,6 +64,12 @@ struct ObjectDesc {
   FileLoc mesh_loc;                ///< Where its mesh path is written.
 };
 
+/// A keyframe of a moving wall: its offset from the start position at time t.
+struct WallKey {
+  double t = 0;                ///< Time, s.
+  Vec3 offset{0, 0, 0};        ///< Displacement from the scene position, m.
+};
+
 /// A wall acting on grid velocities.
 struct WallDesc {
   enum class Shape { plane, box };
@@ -74,6 +80,8 @@ struct WallDesc {
   Vec3 max{1, 1, 1};               ///< Box: maximum corner, m.
   Boundary boundary = Boundary::sticky;  ///< Condition.
   double friction = 0;             ///< Coulomb coefficient (slip and separate).
+  Vec3 velocity{0, 0, 0};          ///< Constant velocity of the wall (it moves), m/s.
+  std::vector<WallKey> path;       ///< Or keyframes, linear in between, held after the last.
   FileLoc loc;                     ///< Where the wall starts in the scene file.
 };
 

@@ -143,7 +143,9 @@ void Simulation::build_stages() {
   add("stress_forces", [this](Real dt) { apply_stress_forces(dt, grid_); });
   if (s.gravity.squaredNorm() > 0)
     add("gravity", [this](Real dt) { apply_gravity(dt, scene_.simulation.gravity, grid_); });
-  if (!walls_.empty()) add("walls", [this](Real) { apply_walls(walls_, grid_); });
+  // Walls act on the grid velocities of the end of the substep: place them at time + dt.
+  if (!walls_.empty())
+    add("walls", [this](Real dt) { wall_work_ += apply_walls(walls_, time_ + dt, grid_); });
   add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
   add("grid_to_particles", [this](Real) {
     grid_to_particles(grid_, scene_.simulation.transfer, scene_.simulation.flip_blend,
@@ -188,7 +190,7 @@ void Simulation::substep(Real dt) {
 Real Simulation::max_speed() const {
   Real v2 = 0;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(particles_.size());
-#pragma omp parallel for schedule(static) reduction(max : v2)
+#pragma omp parallel for schedule(static) reduction(max : v2) if (n >= kParallelMinItems)
   for (std::ptrdiff_t q = 0; q < n; ++q) v2 = std::max(v2, particles_.v[q].squaredNorm());
   return std::sqrt(v2);
 }
@@ -198,6 +200,29 @@ Real Simulation::kinetic_energy() const {
   for (std::size_t q = 0; q < particles_.size(); ++q)
     e += 0.5 * particles_.mass[q] * particles_.v[q].squaredNorm();
   return e;
+}
+
+Real Simulation::total_energy() const {
+  Real gravitational = 0;
+  const Vec3 g = scene_.simulation.gravity;
+  for (std::size_t q = 0; q < particles_.size(); ++q)
+    gravitational -= particles_.mass[q] * g.dot(particles_.x[q] - grid_.origin);
+  return kinetic_energy() + elastic_energy() + gravitational;
+}
+
+std::size_t Simulation::first_nonfinite_particle() const {
+  for (std::size_t q = 0; q < particles_.size(); ++q)
+    if (!particles_.x[q].allFinite() || !particles_.v[q].allFinite() ||
+        !particles_.F[q].allFinite())
+      return q;
+  return particles_.size();
+}
+
+std::size_t Simulation::fastest_particle() const {
+  std::size_t best = 0;
+  for (std::size_t q = 1; q < particles_.size(); ++q)
+    if (particles_.v[q].squaredNorm() > particles_.v[best].squaredNorm()) best = q;
+  return best;
 }
 
 Real Simulation::elastic_energy() const {

@@ -79,8 +79,18 @@ class Simulation {
   std::size_t substeps() const { return substeps_; }
   /// Sets the substep count (when restoring a checkpoint).
   void set_substeps(std::size_t n) { substeps_ = n; }
-  /// Particles with a NaN or infinite position after the last substep.
-  std::size_t nonfinite_particles() const { return last_advect_.nonfinite; }
+  /// What advection saw in the last substep (non-finite positions, clamps, top speed).
+  const AdvectStats& last_advect() const { return last_advect_; }
+  /// Total energy, J: kinetic + elastic + gravitational (relative to the grid origin).
+  Real total_energy() const;
+  /// Index of the first particle with a non-finite position, velocity or F, or size().
+  std::size_t first_nonfinite_particle() const;
+  /// Index of the fastest particle.
+  std::size_t fastest_particle() const;
+  /// The object particle `q` belongs to.
+  const ObjectInfo& object_of(std::size_t q) const { return objects_[particles_.object[q]]; }
+  /// Work done on the bodies by moving walls since the start, J.
+  Real wall_work() const { return wall_work_; }
   /// Particles clamped back into the grid interior, over the whole run.
   std::size_t clamped_particles() const { return clamped_total_; }
   /// Largest particle speed, m/s.
@@ -106,6 +116,7 @@ class Simulation {
   std::size_t substeps_ = 0;
   AdvectStats last_advect_;
   std::size_t clamped_total_ = 0;
+  Real wall_work_ = 0;
 };
 
 }  // namespace mpm

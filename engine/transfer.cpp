@@ -91,7 +91,7 @@ template <bool kApic>
 void scatter_all(const Particles& p, const ParticleOrder& ord, Grid& g) {
   const int slabs = static_cast<int>(ord.slab_start.size()) - 1;
   for (int color = 0; color < 2; ++color) {
-#pragma omp parallel for schedule(dynamic, 1)
+#pragma omp parallel for schedule(dynamic, 1) if (ord.order.size() >= kParallelMinItems)
     for (int s = color; s < slabs; s += 2)
       for (std::size_t q = ord.slab_start[s]; q < ord.slab_start[s + 1]; ++q)
         scatter_particle<kApic>(p, ord.order[q], g);
@@ -122,7 +122,7 @@ void gather_all(const Grid& g, Real flip_blend, Particles& p) {
   // then one small matrix product, which keeps the accumulators in registers.
   using NodeVel = Eigen::Matrix<Real, 3, 27>;
   using NodeKernel = Eigen::Matrix<Real, 27, 7>;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (std::ptrdiff_t q = 0; q < n; ++q) {
     const Stencil s = quadratic_stencil(p.x[q], g.origin, g.inv_h);
     const Vec3 corner = g.position(s.base.x(), s.base.y(), s.base.z()) - p.x[q];
@@ -163,7 +163,7 @@ void grid_to_particles(const Grid& g, Transfer transfer, Real flip_blend, Partic
 
 void update_deformation(Real dt, Particles& p) {
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (std::ptrdiff_t q = 0; q < n; ++q)
     p.F[q] = (Mat3::Identity() + dt * p.grad_v[q]) * p.F[q];
 }
@@ -174,8 +174,11 @@ AdvectStats advect_particles(Real dt, const Grid& g, Particles& p) {
                                  .cwiseProduct(g.h);
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
   std::size_t clamped = 0, nonfinite = 0;
-#pragma omp parallel for schedule(static) reduction(+ : clamped, nonfinite)
+  Real v2 = 0;
+#pragma omp parallel for schedule(static) reduction(+ : clamped, nonfinite) reduction(max : v2) \
+    if (n >= kParallelMinItems)
   for (std::ptrdiff_t q = 0; q < n; ++q) {
+    v2 = std::max(v2, p.v[q].squaredNorm());
     const Vec3 x = p.x[q] + dt * p.v[q];
     if (!x.allFinite()) {
       ++nonfinite;
@@ -185,7 +188,7 @@ AdvectStats advect_particles(Real dt, const Grid& g, Particles& p) {
     if (c != x) ++clamped;
     p.x[q] = c;
   }
-  return {clamped, nonfinite};
+  return {clamped, nonfinite, std::sqrt(v2)};
 }
 
 }  // namespace mpm

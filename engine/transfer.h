@@ -42,6 +42,7 @@ void update_deformation(Real dt, Particles& p);
 struct AdvectStats {
   std::size_t clamped = 0;    ///< Particles pushed back out of the buffer.
   std::size_t nonfinite = 0;  ///< Particles with a NaN or infinite position (left as they were).
+  Real max_speed = 0;         ///< Largest particle speed, m/s.
 };
 
 /// x <- x + dt v, kept inside the grid interior (outside the buffer).

@@ -19,14 +19,14 @@ class ElasticGroup final : public MaterialGroup {
   void compute_stress(std::span<const Mat3> F, std::span<const Real> volume0,
                       std::span<Mat3> out) const override {
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
     for (std::ptrdiff_t p = 0; p < n; ++p) out[p] = -volume0[p] * model_.kirchhoff(F[p]);
   }
 
   Real max_wave_speed(std::span<const Mat3> F) const override {
     Real c = 0;
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static) reduction(max : c)
+#pragma omp parallel for schedule(static) reduction(max : c) if (n >= kParallelMinItems)
     for (std::ptrdiff_t p = 0; p < n; ++p) c = std::max(c, model_.wave_speed(F[p], rho0_));
     return c;
   }

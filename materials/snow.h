@@ -45,7 +45,7 @@ class SnowGroup final : public MaterialGroup {
   void compute_stress(std::span<const Mat3> F, std::span<const Real> volume0,
                       std::span<Mat3> out) const override {
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
     for (std::ptrdiff_t p = 0; p < n; ++p) out[p] = -volume0[p] * hardened(p).kirchhoff(F[p]);
   }
 
@@ -53,7 +53,7 @@ class SnowGroup final : public MaterialGroup {
 
   void apply_plasticity(std::span<Mat3> F) override {
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
     for (std::ptrdiff_t p = 0; p < n; ++p) plastic_.project(F[p], Jp_[p]);
   }
 
@@ -61,7 +61,7 @@ class SnowGroup final : public MaterialGroup {
     Real c = 0;
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
     // Hardened moduli, at the current density rho0 / (Je Jp) (references.md, "Time step").
-#pragma omp parallel for schedule(static) reduction(max : c)
+#pragma omp parallel for schedule(static) reduction(max : c) if (n >= kParallelMinItems)
     for (std::ptrdiff_t p = 0; p < n; ++p) {
       const FixedCorotated m = hardened(p);
       const Real J = std::max(std::abs(F[p].determinant()) * Jp_[p], Real(1e-6));

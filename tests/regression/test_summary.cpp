@@ -1,0 +1,635 @@
+// Run summaries: values against the particles, exact YAML round trip, comparison and
+// tolerances, bad input, file size, and free-fall physics seen through the summary.
+#include <omp.h>
+
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <sstream>
+
+#include "engine/run.h"
+#include "engine/summary.h"
+#include "support/helpers.h"
+
+using namespace mpm;
+
+namespace {
+
+/// Two small elastic cubes far apart, falling freely (no walls), with different velocities.
+// clang-format off
+std::string two_cubes(int frames) {
+  return "simulation:\n"
+         "  frames: " + std::to_string(frames) + "\n"
+         "  frame_dt: 0.02\n"
+         "  dt: 0.002\n"
+         "grid:\n"
+         "  max: [1, 1, 1]\n"
+         "  dims: 20\n"
+         "objects:\n"
+         "  - name: left\n"
+         "    mesh: " + test::cube_mesh() + "\n"
+         "    scale: 0.15\n"
+         "    offset: [0.3, 0.7, 0.5]\n"
+         "    velocity: [0.3, 0.0, 0.1]\n"
+         "    density: 1000\n"
+         "    material: corotated\n"
+         "    E: 1.0e5\n"
+         "    nu: 0.3\n"
+         "  - name: right\n"
+         "    mesh: " + test::cube_mesh() + "\n"
+         "    scale: 0.15\n"
+         "    rotation: [10, 20, 30]\n"
+         "    offset: [0.7, 0.6, 0.5]\n"
+         "    velocity: [-0.2, 0.5, -0.1]\n"
+         "    density: 500\n"
+         "    material: corotated\n"
+         "    E: 2.0e5\n"
+         "    nu: 0.25\n";
+}
+// clang-format on
+
+/// Per-object numbers computed straight from the particles, grouped by each particle's object
+/// id (not by the ObjectInfo ranges summarize() uses).
+struct Independent {
+  std::vector<double> mass, kinetic, gravitational, max_speed, mean_speed;
+  std::vector<Vec3> centroid, momentum, angular, lo, hi;
+  double elastic_total = 0;
+  double time = 0;
+};
+
+Independent compute_independently(const Simulation& sim) {
+  const Particles& p = sim.particles();
+  const std::size_t n_obj = sim.objects().size();
+  const Vec3 g = sim.scene().simulation.gravity, o = sim.scene().grid.origin;
+  Independent r;
+  r.mass.assign(n_obj, 0);
+  r.kinetic.assign(n_obj, 0);
+  r.gravitational.assign(n_obj, 0);
+  r.max_speed.assign(n_obj, 0);
+  r.mean_speed.assign(n_obj, 0);
+  r.centroid.assign(n_obj, Vec3::Zero());
+  r.momentum.assign(n_obj, Vec3::Zero());
+  r.angular.assign(n_obj, Vec3::Zero());
+  r.lo.assign(n_obj, Vec3::Constant(1e300));
+  r.hi.assign(n_obj, Vec3::Constant(-1e300));
+  std::vector<double> count(n_obj, 0);
+  for (std::size_t q = 0; q < p.size(); ++q) {
+    const std::size_t k = p.object[q];
+    const double m = p.mass[q];
+    const Vec3 &x = p.x[q], &v = p.v[q];
+    r.mass[k] += m;
+    r.centroid[k] += m * x;
+    r.kinetic[k] += 0.5 * m * v.squaredNorm();
+    r.gravitational[k] += -m * g.dot(x - o);
+    r.max_speed[k] = std::max(r.max_speed[k], v.norm());
+    r.mean_speed[k] += v.norm();
+    count[k] += 1;
+    r.momentum[k] += m * v;
+    r.angular[k] += m * (x - o).cross(v);
+    r.lo[k] = r.lo[k].cwiseMin(x);
+    r.hi[k] = r.hi[k].cwiseMax(x);
+  }
+  for (std::size_t k = 0; k < n_obj; ++k) {
+    r.centroid[k] /= r.mass[k];
+    r.mean_speed[k] /= count[k];
+  }
+  r.elastic_total = sim.elastic_energy();
+  r.time = sim.time();
+  return r;
+}
+
+/// Records the independent numbers at frame 0 and after every frame.
+struct Recorder : Observer {
+  std::vector<Independent> frames;
+  void on_start(const Simulation& sim, int) override {
+    frames.push_back(compute_independently(sim));
+  }
+  void on_frame(const Simulation& sim, int) override {
+    frames.push_back(compute_independently(sim));
+  }
+};
+
+/// Checks after each frame that summary.yaml on disk already holds every frame so far.
+struct FileWatcher : Observer {
+  std::filesystem::path file;
+  std::vector<std::size_t> frames_on_disk;
+  void on_frame(const Simulation&, int) override {
+    frames_on_disk.push_back(read_summary(file).frames.size());
+  }
+};
+
+struct Run {
+  RunSummary summary;
+  std::filesystem::path dir;
+  std::unique_ptr<Simulation> sim;
+};
+
+Run run_two_cubes(const std::string& name, int frames, std::vector<Observer*> extra = {}) {
+  Run r;
+  r.dir = test::temp_dir(name);
+  const SceneDesc scene = test::scene_from(two_cubes(frames));
+  r.sim = Simulation::create(scene, builtin_registry());
+  SummaryWriter writer(r.dir);
+  std::vector<Observer*> observers{&writer};
+  observers.insert(observers.end(), extra.begin(), extra.end());
+  const RunResult result = run_frames(*r.sim, frames, scene.simulation.frame_dt, observers);
+  REQUIRE(result.status == "ok");
+  r.summary = writer.summary();
+  return r;
+}
+
+/// Bit-for-bit equality of two doubles (NaN equals NaN, 0 differs from -0).
+bool same_bits(double a, double b) {
+  return std::memcmp(&a, &b, sizeof a) == 0;
+}
+
+bool same_bits(const Vec3& a, const Vec3& b) {
+  return same_bits(a.x(), b.x()) && same_bits(a.y(), b.y()) && same_bits(a.z(), b.z());
+}
+
+/// Every field of two summaries, bit for bit; the first difference goes to INFO via `why`.
+bool identical(const RunSummary& a, const RunSummary& b, std::string& why) {
+  if (a.scene != b.scene) return why = "scene", false;
+  if (a.frames.size() != b.frames.size()) return why = "frame count", false;
+  for (std::size_t i = 0; i < a.frames.size(); ++i) {
+    const FrameSummary &fa = a.frames[i], &fb = b.frames[i];
+    const std::string at = "frame " + std::to_string(i) + ": ";
+    if (fa.frame != fb.frame || !same_bits(fa.time, fb.time)) return why = at + "time", false;
+    if (fa.objects.size() != fb.objects.size()) return why = at + "objects", false;
+    for (std::size_t k = 0; k < fa.objects.size(); ++k) {
+      const ObjectSummary &x = fa.objects[k], &y = fb.objects[k];
+      const std::map<std::string, bool> fields{
+          {"name", x.name == y.name},
+          {"particles", x.particles == y.particles},
+          {"centroid", same_bits(x.centroid, y.centroid)},
+          {"bbox_min", same_bits(x.bbox_min, y.bbox_min)},
+          {"bbox_max", same_bits(x.bbox_max, y.bbox_max)},
+          {"mean_speed", same_bits(x.mean_speed, y.mean_speed)},
+          {"max_speed", same_bits(x.max_speed, y.max_speed)},
+          {"kinetic_energy", same_bits(x.kinetic_energy, y.kinetic_energy)},
+          {"elastic_energy", same_bits(x.elastic_energy, y.elastic_energy)},
+          {"gravitational_energy", same_bits(x.gravitational_energy, y.gravitational_energy)},
+          {"linear_momentum", same_bits(x.linear_momentum, y.linear_momentum)},
+          {"angular_momentum", same_bits(x.angular_momentum, y.angular_momentum)}};
+      for (const auto& [field, equal] : fields)
+        if (!equal) return why = at + "object " + std::to_string(k) + " " + field, false;
+    }
+  }
+  return true;
+}
+
+const Difference& row(const CompareResult& r, const std::string& quantity) {
+  for (const Difference& d : r.largest)
+    if (d.quantity == quantity || d.quantity.rfind(quantity + ".", 0) == 0) return d;
+  FAIL("no row for " << quantity);
+  return r.largest.front();
+}
+
+/// Approx relative to `scale`, so that values near zero are compared on the right scale.
+bool near(double a, double b, double scale, double eps = 1e-12) {
+  return std::abs(a - b) <= eps * std::max(scale, 1e-300);
+}
+
+}  // namespace
+
+TEST_CASE("summary.yaml holds the values computed from the particles", "[summary]") {
+  Recorder recorder;
+  const int frames = 5;
+  Run run = run_two_cubes("summary_values", frames, {&recorder});
+  const RunSummary s = read_summary(run.dir / "summary.yaml");
+  REQUIRE(s.scene == "test.yaml");
+  REQUIRE(s.frames.size() == frames + 1);
+  REQUIRE(recorder.frames.size() == frames + 1);
+  const std::size_t n_total = run.sim->particles().size();
+  for (int f = 0; f <= frames; ++f) {
+    INFO("frame " << f);
+    const FrameSummary& fs = s.frames[f];
+    const Independent& ind = recorder.frames[f];
+    CHECK(fs.frame == f);
+    CHECK(fs.time == ind.time);
+    CHECK(fs.time == Approx(f * 0.02).epsilon(1e-12));
+    REQUIRE(fs.objects.size() == 2);
+    CHECK(fs.objects[0].name == "left");
+    CHECK(fs.objects[1].name == "right");
+    CHECK(fs.objects[0].particles + fs.objects[1].particles == n_total);
+    CHECK(fs.objects[0].particles > 100);
+    double elastic = 0;
+    for (std::size_t k = 0; k < 2; ++k) {
+      INFO("object " << fs.objects[k].name);
+      const ObjectSummary& o = fs.objects[k];
+      const double L = 1.0;  // the grid's size: the scale of positions
+      for (int a = 0; a < 3; ++a) {
+        CHECK(near(o.centroid[a], ind.centroid[k][a], L));
+        CHECK(o.bbox_min[a] == ind.lo[k][a]);
+        CHECK(o.bbox_max[a] == ind.hi[k][a]);
+        CHECK(near(o.linear_momentum[a], ind.momentum[k][a], ind.momentum[k].norm() + 1e-3));
+        CHECK(near(o.angular_momentum[a], ind.angular[k][a], ind.angular[k].norm() + 1e-3));
+      }
+      CHECK(o.kinetic_energy == Approx(ind.kinetic[k]).epsilon(1e-12));
+      CHECK(o.gravitational_energy == Approx(ind.gravitational[k]).epsilon(1e-12));
+      CHECK(o.max_speed == ind.max_speed[k]);
+      CHECK(o.mean_speed == Approx(ind.mean_speed[k]).epsilon(1e-12));
+      // A uniform, shape-keeping motion: the centroid velocity is the mean velocity.
+      CHECK(o.max_speed == Approx(o.mean_speed).epsilon(1e-9));
+      elastic += o.elastic_energy;
+    }
+    CHECK(near(elastic, ind.elastic_total, std::abs(s.frames[f].objects[0].kinetic_energy)));
+    // Frame f's state: the centroid moved by v0 t + g t^2 / 2 (+ g t dt / 2) from frame 0.
+    const double t = fs.time;
+    const Vec3 expected = s.frames[0].objects[0].centroid + Vec3(0.3, 0, 0.1) * t +
+                          Vec3(0, -9.81, 0) * (0.5 * t * t + 0.5 * t * 0.002);
+    CHECK((fs.objects[0].centroid - expected).norm() < 1e-10);
+  }
+}
+
+TEST_CASE("the summary file is rewritten after every frame", "[summary]") {
+  FileWatcher watcher;
+  const auto dir = test::temp_dir("summary_progress");
+  watcher.file = dir / "summary.yaml";
+  const SceneDesc scene = test::scene_from(two_cubes(4));
+  auto sim = Simulation::create(scene, builtin_registry());
+  SummaryWriter writer(dir);
+  REQUIRE(writer.file() == dir / "summary.yaml");
+  // The watcher runs after the writer, so the file must already hold frames 0..f.
+  const RunResult r = run_frames(*sim, 4, scene.simulation.frame_dt, {&writer, &watcher});
+  REQUIRE(r.status == "ok");
+  CHECK(watcher.frames_on_disk == std::vector<std::size_t>{2, 3, 4, 5});
+  CHECK_FALSE(std::filesystem::exists(dir / "summary.yaml.tmp"));
+}
+
+TEST_CASE("a resumed run keeps the earlier frames of its summary", "[summary]") {
+  Run full = run_two_cubes("summary_resume", 5);
+  // The same scene run to frame 3 without observers, as a checkpoint would restore it.
+  const SceneDesc scene = test::scene_from(two_cubes(5));
+  auto sim = Simulation::create(scene, builtin_registry());
+  REQUIRE(run_frames(*sim, 3, scene.simulation.frame_dt, {}).status == "ok");
+  SummaryWriter resumed(full.dir);
+  resumed.on_start(*sim, 5);
+  RunSummary expected = full.summary;
+  expected.frames.resize(4);  // frames 0, 1, 2 from the file, 3 from the state
+  std::string why;
+  const bool same = identical(read_summary(full.dir), expected, why);
+  INFO(why);
+  CHECK(same);
+  CHECK(resumed.summary().frames.back().frame == 3);
+  // A new run (time 0) starts afresh, whatever the folder holds.
+  auto fresh = Simulation::create(scene, builtin_registry());
+  SummaryWriter restart(full.dir);
+  restart.on_start(*fresh, 5);
+  CHECK(read_summary(full.dir).frames.size() == 1);
+}
+
+TEST_CASE("summary write -> read round trip is exact", "[summary]") {
+  Run run = run_two_cubes("summary_roundtrip", 3);
+  std::string why;
+  const RunSummary back = read_summary(run.dir / "summary.yaml");
+  const bool same = identical(back, run.summary, why);
+  INFO(why);
+  CHECK(same);
+
+  // Awkward doubles: not short decimals, tiny, huge, subnormal, signed zero, non-finite.
+  RunSummary odd = run.summary;
+  ObjectSummary& o = odd.frames[1].objects[1];
+  o.centroid = Vec3(0.1 + 1.0 / 3.0, -1e-300, 5e-324);
+  o.bbox_min = Vec3(-0.0, 1e300, std::nextafter(1.0, 2.0));
+  o.bbox_max = Vec3(1e20, 1e-5, 123456789012345680.0);
+  o.kinetic_energy = std::numeric_limits<double>::quiet_NaN();
+  o.elastic_energy = std::numeric_limits<double>::infinity();
+  o.gravitational_energy = -std::numeric_limits<double>::infinity();
+  o.name = "a \"quoted\" name: with\\colon";
+  odd.frames[1].objects[0].name = "yes";   // a YAML 1.1 boolean, must stay a string
+  odd.frames[2].objects[1].name = o.name;  // names must agree across frames for compare
+  odd.scene = "scenes/my scene.yaml";
+  const std::string text = summary_to_yaml(odd);
+  // Exponent forms carry a '.', so YAML 1.1 readers such as PyYAML see numbers.
+  CHECK(text.find("1.0e+20") != std::string::npos);
+  CHECK(text.find("1.0e-05") != std::string::npos);
+  const RunSummary odd_back = parse_summary(text, "odd.yaml");
+  const bool odd_same = identical(odd_back, odd, why);
+  INFO(why);
+  CHECK(odd_same);
+}
+
+TEST_CASE("a run compared with itself passes with zero differences", "[summary]") {
+  Run run = run_two_cubes("summary_self", 4);
+  const Tolerances tol = default_tolerances(run.summary);
+  const CompareResult r = compare_summaries(run.summary, read_summary(run.dir), tol);
+  INFO(format_comparison(r));
+  CHECK(r.ok);
+  CHECK(r.error.empty());
+  CHECK(r.frames == 5);
+  CHECK(r.objects == 2);
+  REQUIRE(r.largest.size() == 10);
+  for (const Difference& d : r.largest) {
+    INFO(d.quantity);
+    CHECK(d.difference == 0);
+    CHECK(d.ok());
+    CHECK(d.first_frame_over == -1);
+  }
+  const std::string table = format_comparison(r);
+  CHECK(table.find("FAIL") == std::string::npos);
+  CHECK(table.find("PASS: every quantity within tolerance (5 frames, 2 objects)") !=
+        std::string::npos);
+  // Even exact comparison passes: the same build gives the same bits.
+  CHECK(compare_summaries(run.summary, run.summary, parse_tolerance_overrides(tol, {"all=0"})).ok);
+}
+
+TEST_CASE("a run is bit-identical on 1 and 2 threads, so goldens can be exact", "[summary]") {
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  Run one = run_two_cubes("summary_threads1", 3);
+  omp_set_num_threads(2);
+  Run two = run_two_cubes("summary_threads2", 3);
+  omp_set_num_threads(threads);
+  const Tolerances exact = parse_tolerance_overrides({}, {"all=0"});
+  const CompareResult r = compare_summaries(one.summary, two.summary, exact);
+  INFO(format_comparison(r));
+  CHECK(r.ok);
+}
+
+TEST_CASE("a nudged centroid fails at the right frame, object and quantity", "[summary]") {
+  Run run = run_two_cubes("summary_nudge", 6);
+  const Tolerances tol = default_tolerances(run.summary);
+  REQUIRE(tol.centroid > 0);
+
+  RunSummary nudged = run.summary;
+  nudged.frames[4].objects[1].centroid.y() += 3 * tol.centroid;
+  nudged.frames[5].objects[1].centroid.y() += 10 * tol.centroid;  // the largest, later
+  const CompareResult r = compare_summaries(nudged, run.summary, tol);
+  const std::string table = format_comparison(r);
+  INFO(table);
+  CHECK_FALSE(r.ok);
+  CHECK(r.error.empty());
+  const Difference& d = row(r, "centroid");
+  CHECK(d.quantity == "centroid.y");
+  CHECK(d.frame == 5);
+  CHECK(d.object == "right");
+  CHECK(d.first_frame_over == 4);
+  CHECK(d.difference == Approx(10 * tol.centroid).epsilon(1e-6));
+  CHECK(d.value_a == nudged.frames[5].objects[1].centroid.y());
+  CHECK(d.value_b == run.summary.frames[5].objects[1].centroid.y());
+  CHECK(d.tolerance == tol.centroid);
+  CHECK_FALSE(d.ok());
+  for (const Difference& other : r.largest)
+    if (&other != &d) CHECK(other.ok());
+  // The table names the failing row and says where.
+  std::istringstream lines(table);
+  std::string line, centroid_line;
+  while (std::getline(lines, line))
+    if (line.rfind("centroid.y", 0) == 0) centroid_line = line;
+  CHECK(centroid_line.find("right") != std::string::npos);
+  CHECK(centroid_line.find("FAIL (first over at frame 4)") != std::string::npos);
+  CHECK(table.find("FAIL: 1 of 10 quantities beyond tolerance") != std::string::npos);
+
+  // Below the tolerance it passes; a looser override lets the big nudge pass too.
+  RunSummary small = run.summary;
+  small.frames[3].objects[0].centroid.x() -= 0.5 * tol.centroid;
+  CHECK(compare_summaries(small, run.summary, tol).ok);
+  const Tolerances loose =
+      parse_tolerance_overrides(tol, {"centroid=" + std::to_string(20 * tol.centroid)});
+  CHECK(compare_summaries(nudged, run.summary, loose).ok);
+
+  // A NaN in the run is never within tolerance.
+  RunSummary broken = run.summary;
+  broken.frames[2].objects[0].kinetic_energy = std::numeric_limits<double>::quiet_NaN();
+  const CompareResult rb = compare_summaries(broken, run.summary, tol);
+  CHECK_FALSE(rb.ok);
+  CHECK(row(rb, "kinetic_energy").frame == 2);
+  CHECK(row(rb, "kinetic_energy").object == "left");
+}
+
+TEST_CASE("summaries of different runs give an error, not a verdict", "[summary]") {
+  Run run = run_two_cubes("summary_mismatch", 3);
+  const Tolerances tol = default_tolerances(run.summary);
+  auto error_of = [&](const RunSummary& a) {
+    const CompareResult r = compare_summaries(a, run.summary, tol);
+    CHECK_FALSE(r.ok);
+    CHECK(format_comparison(r).rfind("cannot compare: ", 0) == 0);
+    return r.error;
+  };
+  RunSummary fewer = run.summary;
+  fewer.frames.pop_back();
+  CHECK_THAT(error_of(fewer), Catch::Contains("different frame counts: 3 frames (0..2) vs 4"));
+
+  RunSummary renamed = run.summary;
+  for (FrameSummary& f : renamed.frames) f.objects[1].name = "other";
+  CHECK_THAT(error_of(renamed), Catch::Contains("'other' vs 'right'"));
+
+  RunSummary one_object = run.summary;
+  for (FrameSummary& f : one_object.frames) f.objects.pop_back();
+  CHECK_THAT(error_of(one_object), Catch::Contains("objects 'left' vs 'left', 'right'"));
+
+  RunSummary more_particles = run.summary;
+  for (FrameSummary& f : more_particles.frames) f.objects[0].particles += 1;
+  CHECK_THAT(error_of(more_particles), Catch::Contains("particles vs"));
+
+  RunSummary other_dt = run.summary;
+  for (FrameSummary& f : other_dt.frames) f.time *= 2;
+  CHECK_THAT(error_of(other_dt), Catch::Contains("different frame_dt?"));
+
+  CHECK_THAT(error_of(RunSummary{}), Catch::Contains("no frames"));
+}
+
+TEST_CASE("a 2-object 10-frame summary is small", "[summary]") {
+  Run run = run_two_cubes("summary_size", 10);
+  const auto bytes = std::filesystem::file_size(run.dir / "summary.yaml");
+  INFO(bytes << " bytes");
+  CHECK(bytes < 20 * 1024);
+  CHECK(run.summary.frames.size() == 11);
+}
+
+TEST_CASE("free fall seen through the summary: p grows by M g t, energy as symplectic Euler",
+          "[summary][physics]") {
+  Run run = run_two_cubes("summary_free_fall", 8);
+  const Vec3 g(0, -9.81, 0);
+  const double dt = 0.002;
+  double mass[2] = {0, 0};
+  const Particles& p = run.sim->particles();
+  for (std::size_t q = 0; q < p.size(); ++q) mass[p.object[q]] += p.mass[q];
+  const FrameSummary& first = run.summary.frames.front();
+  for (const FrameSummary& f : run.summary.frames) {
+    INFO("frame " << f.frame);
+    const double t = f.time;
+    for (std::size_t k = 0; k < 2; ++k) {
+      INFO("object " << f.objects[k].name);
+      const ObjectSummary &o = f.objects[k], &o0 = first.objects[k];
+      const Vec3 expected_p = o0.linear_momentum + mass[k] * g * t;
+      CHECK((o.linear_momentum - expected_p).norm() < 1e-12 * (1 + expected_p.norm()));
+      // F stays I in free fall: no elastic energy.
+      CHECK(std::abs(o.elastic_energy) < 1e-12 * o0.kinetic_energy);
+      // Symplectic Euler (grid v += dt g, then x += dt v) gives v_n = v0 + g t and
+      // x_n = x0 + v0 t + g t^2/2 + g t dt/2, so K + U drifts by exactly -M |g|^2 t dt / 2;
+      // that, and nothing but round-off, is what the summary must show.
+      const double e0 = o0.kinetic_energy + o0.gravitational_energy;
+      const double e = o.kinetic_energy + o.gravitational_energy;
+      const double drift = -0.5 * mass[k] * g.squaredNorm() * t * dt;
+      CHECK(std::abs(e - (e0 + drift)) < 1e-12 * std::abs(o0.gravitational_energy));
+    }
+  }
+  // The drift is real and resolved: after 8 frames it is far above round-off.
+  const double t_end = run.summary.frames.back().time;
+  CHECK(0.5 * mass[0] * g.squaredNorm() * t_end * dt >
+        1e-6 * std::abs(first.objects[0].gravitational_energy));
+}
+
+TEST_CASE("default tolerances scale with the reference run", "[summary]") {
+  RunSummary s;
+  s.frames.resize(2);
+  for (int f = 0; f < 2; ++f) {
+    s.frames[f].frame = f;
+    ObjectSummary o;
+    o.name = "a";
+    o.particles = 10;
+    o.bbox_min = Vec3(1, 2, 3);
+    o.bbox_max = Vec3(1.5, 2.2 + f, 3.1);  // largest extent 1.2 (frame 1, y)
+    o.max_speed = 2 + f;                   // largest 3
+    o.kinetic_energy = 4 + f;              // |K| + |E_el|: 5, then 6
+    o.elastic_energy = -1;
+    o.gravitational_energy = 100 - 5 * f;       // range 5, whatever the offset 100
+    o.linear_momentum = Vec3(0, 3 * f, 4 * f);  // largest |p| 5
+    s.frames[f].objects.push_back(o);
+  }
+  const Tolerances t = default_tolerances(s);
+  CHECK(t.centroid == Approx(1e-3 * 1.2));
+  CHECK(t.bbox == Approx(5e-3 * 1.2));
+  CHECK(t.speed == Approx(5e-3 * 3));
+  CHECK(t.energy == Approx(1e-3 * (6 + 5)));
+  CHECK(t.momentum == Approx(5e-3 * 5));
+  CHECK(t.angular_momentum == Approx(5e-3 * 5 * Vec3(1.5, 3.2, 3.1).norm()));
+  // Twice the size: twice the length tolerances, same speed tolerance.
+  RunSummary big = s;
+  for (FrameSummary& f : big.frames)
+    for (ObjectSummary& o : f.objects) o.bbox_min *= 2, o.bbox_max *= 2;
+  CHECK(default_tolerances(big).centroid == Approx(2 * t.centroid));
+  CHECK(default_tolerances(big).speed == t.speed);
+  // Moving the grid origin shifts gravitational energy but not the energy tolerance.
+  RunSummary shifted = s;
+  for (FrameSummary& f : shifted.frames) f.objects[0].gravitational_energy += 1e4;
+  CHECK(default_tolerances(shifted).energy == Approx(t.energy));
+}
+
+TEST_CASE("tolerance overrides: QUANTITY=VALUE, unknown names are listed", "[summary]") {
+  const Tolerances base{1, 2, 3, 4, 5, 6};
+  const Tolerances t =
+      parse_tolerance_overrides(base, {"centroid=1e-4", "energy=0.5", "angular_momentum=7"});
+  CHECK(t.centroid == 1e-4);
+  CHECK(t.bbox == 2);
+  CHECK(t.speed == 3);
+  CHECK(t.energy == 0.5);
+  CHECK(t.momentum == 5);
+  CHECK(t.angular_momentum == 7);
+  const Tolerances all = parse_tolerance_overrides(base, {"all=0", "speed=1"});
+  CHECK(all.centroid == 0);
+  CHECK(all.angular_momentum == 0);
+  CHECK(all.speed == 1);
+  CHECK_THROWS_WITH(parse_tolerance_overrides(base, {"centriod=1"}),
+                    Catch::Contains("unknown tolerance quantity 'centriod'") &&
+                        Catch::Contains("centroid, bbox, speed, energy, momentum"));
+  CHECK_THROWS_AS(parse_tolerance_overrides(base, {"centriod=1"}), std::invalid_argument);
+  CHECK_THROWS_AS(parse_tolerance_overrides(base, {"centroid"}), std::invalid_argument);
+  CHECK_THROWS_AS(parse_tolerance_overrides(base, {"centroid=-1"}), std::invalid_argument);
+  CHECK_THROWS_AS(parse_tolerance_overrides(base, {"centroid=abc"}), std::invalid_argument);
+  CHECK_THROWS_AS(parse_tolerance_overrides(base, {"centroid=1e-3x"}), std::invalid_argument);
+  CHECK_THROWS_AS(parse_tolerance_overrides(base, {"centroid=nan"}), std::invalid_argument);
+}
+
+TEST_CASE("reading a bad summary names the file and the problem", "[summary]") {
+  const auto dir = test::temp_dir("summary_bad");
+  CHECK_THROWS_WITH(read_summary(dir / "missing.yaml"),
+                    Catch::Contains("missing.yaml") && Catch::Contains("no such file"));
+  auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir / name) << text;
+    return dir / name;
+  };
+  CHECK_THROWS_WITH(read_summary(write("syntax.yaml", "frames: [\n")),
+                    Catch::Contains("syntax.yaml") && Catch::Contains("not valid YAML"));
+  CHECK_THROWS_WITH(read_summary(write("list.yaml", "- 1\n- 2\n")),
+                    Catch::Contains("list.yaml") && Catch::Contains("not a run summary"));
+  CHECK_THROWS_WITH(read_summary(write("noframes.yaml", "scene: x\n")),
+                    Catch::Contains("noframes.yaml") && Catch::Contains("missing 'frames'"));
+  const std::string object =
+      "frames:\n"
+      "- frame: 0\n"
+      "  time: 0\n"
+      "  objects:\n"
+      "  - name: cube\n"
+      "    particles: 8\n"
+      "    centroid: [0, 0, 0]\n"
+      "    bbox_min: [0, 0, 0]\n"
+      "    bbox_max: [0, 0, 0]\n"
+      "    mean_speed: 0\n"
+      "    max_speed: 0\n"
+      "    kinetic_energy: 0\n"
+      "    elastic_energy: 0\n"
+      "    gravitational_energy: 0\n"
+      "    linear_momentum: [0, 0, 0]\n"
+      "    angular_momentum: [0, 0, 0]\n";
+  CHECK(read_summary(write("good.yaml", object)).frames.at(0).objects.at(0).particles == 8);
+  std::string no_energy = object;
+  no_energy.replace(no_energy.find("    kinetic_energy: 0\n"), 22, "");
+  CHECK_THROWS_WITH(read_summary(write("nokinetic.yaml", no_energy)),
+                    Catch::Contains("nokinetic.yaml:5") &&
+                        Catch::Contains("frames[0].objects[0] (cube): missing 'kinetic_energy'"));
+  std::string bad_number = object;
+  bad_number.replace(bad_number.find("max_speed: 0"), 12, "max_speed: fast");
+  CHECK_THROWS_WITH(
+      read_summary(write("badnumber.yaml", bad_number)),
+      Catch::Contains("badnumber.yaml:11") && Catch::Contains("max_speed is not a number: 'fast'"));
+  std::string short_vec = object;
+  short_vec.replace(short_vec.find("centroid: [0, 0, 0]"), 19, "centroid: [0, 0]");
+  CHECK_THROWS_WITH(read_summary(write("shortvec.yaml", short_vec)),
+                    Catch::Contains("centroid must be a list of 3 numbers"));
+  CHECK_THROWS_WITH(read_summary(write("version.yaml", "summary_version: 2\nframes: []\n")),
+                    Catch::Contains("summary_version 2 is not supported"));
+  // A folder stands for the summary.yaml inside it.
+  CHECK(summary_path(dir) == dir / "summary.yaml");
+  CHECK(summary_path(dir / "good.yaml") == dir / "good.yaml");
+}
+
+TEST_CASE("frames compared particle by particle", "[summary]") {
+  FrameData a;
+  const std::size_t n = 20;
+  for (std::size_t q = 0; q < n; ++q) {
+    for (int c = 0; c < 3; ++c) {
+      a.position.push_back(0.01f * q + c);
+      a.velocity.push_back(0.1f * c - 0.02f * q);
+    }
+    a.object_id.push_back(q < n / 2 ? 0 : 1);
+    a.J.push_back(1.0f);
+  }
+  const ParticleDiff same = compare_frames(a, a);
+  CHECK(same.error.empty());
+  CHECK(same.particles == n);
+  CHECK(same.max_position == 0);
+  CHECK(same.max_velocity == 0);
+  CHECK(same.max_J == 0);
+
+  FrameData b = a;
+  b.position[3 * 7 + 0] += 0.003f;
+  b.position[3 * 7 + 2] += 0.004f;
+  b.position[3 * 2 + 1] += 0.001f;
+  b.velocity[3 * 13 + 1] -= 0.5f;
+  b.J[5] = 0.9f;
+  const ParticleDiff d = compare_frames(a, b);
+  CHECK(d.error.empty());
+  CHECK(d.position_index == 7);
+  CHECK(d.max_position == Approx(0.005).epsilon(1e-4));
+  CHECK(d.velocity_index == 13);
+  CHECK(d.max_velocity == Approx(0.5).epsilon(1e-4));
+  CHECK(d.J_index == 5);
+  CHECK(d.max_J == Approx(0.1).epsilon(1e-4));
+
+  FrameData shorter = a;
+  shorter.position.resize(3 * (n - 1));
+  shorter.velocity.resize(3 * (n - 1));
+  shorter.object_id.resize(n - 1);
+  shorter.J.resize(n - 1);
+  CHECK_THAT(compare_frames(a, shorter).error,
+             Catch::Contains("different particle counts: 20 vs 19"));
+  FrameData other_object = a;
+  other_object.object_id[4] = 1;
+  CHECK_THAT(compare_frames(a, other_object).error, Catch::Contains("particle 4"));
+}
