@@ -5,6 +5,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -13,6 +14,7 @@
 #include <omp.h>
 #include <spdlog/spdlog.h>
 
+#include "engine/bench.h"
 #include "engine/load_scene.h"
 #include "engine/output.h"
 #include "engine/progress.h"
@@ -34,6 +36,8 @@ Usage:
                                  list every registered material (and a scene's or a file's
                                  plugins) with its keys, units, defaults and ranges
   mpm preview DIR [--fps N]      join DIR/preview/frame_*.png into DIR/preview.mp4 (ffmpeg)
+  mpm bench [--cases jello,snow,sparse] [--particles N] [--threads N] [--csv FILE]
+                                 time standard cases (median of 3 after a warm-up)
   mpm golden SCENE.yaml --frames N -o FILE
                                  run N frames and write the run summary to FILE (a golden)
   mpm compare A B [--tol QUANTITY=VALUE ...]
@@ -63,6 +67,8 @@ Ctrl-C or SIGTERM stops a run after the current substep.
 struct Args {
   std::string command, scene, second, out, resume, formats, output_file, log_level = "info";
   std::vector<std::string> tols;
+  std::string cases, csv;
+  std::optional<long> particles;
   std::optional<int> frames, threads, fps;
   std::vector<std::string> sets;
   bool quiet = false, force = false;
@@ -107,6 +113,12 @@ Args parse_args(int argc, char** argv) {
       a.threads = parse_count(w, value(), 1);
     } else if (w == "--set") {
       a.sets.push_back(value());
+    } else if (w == "--cases") {
+      a.cases = value();
+    } else if (w == "--csv") {
+      a.csv = value();
+    } else if (w == "--particles") {
+      a.particles = parse_count(w, value(), 1000);
     } else if (w == "--tol") {
       a.tols.push_back(value());
     } else if (w == "-o") {
@@ -201,6 +213,31 @@ int main(int argc, char** argv) {
                             (dir / "preview.mp4").string() + "'";
     if (std::system(cmd.c_str()) != 0) return mpm::kExitRunFailed;
     std::printf("%s\n", (dir / "preview.mp4").c_str());
+    return mpm::kExitOk;
+  }
+  if (args.command == "bench") {
+    mpm::BenchOptions opt;
+    if (args.threads) opt.threads = *args.threads;
+    if (args.particles) opt.particles = *args.particles;
+    if (!args.cases.empty()) {
+      opt.cases.clear();
+      std::stringstream list(args.cases);
+      for (std::string c; std::getline(list, c, ',');) opt.cases.push_back(c);
+    }
+    try {
+      const auto results = mpm::run_benchmarks(opt);
+      std::printf("%s", mpm::format_bench_table(results).c_str());
+      if (!args.csv.empty()) {
+        std::ofstream csv(args.csv);
+        csv << mpm::format_bench_csv(results);
+        if (!csv) throw std::runtime_error("cannot write '" + args.csv + "'");
+      }
+    } catch (const std::invalid_argument& e) {
+      usage_error(e.what());
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "error: %s\n", e.what());
+      return mpm::kExitRunFailed;
+    }
     return mpm::kExitOk;
   }
   if (args.command == "compare") {

@@ -1,0 +1,189 @@
+#include "engine/bench.h"
+
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <stdexcept>
+
+#include <omp.h>
+
+#include "engine/simulation.h"
+
+namespace mpm {
+
+namespace {
+
+/// A falling cube of `material` on a slip floor, sized for about `particles` particles at
+/// 8 per cell, in a grid whose side is `domain_scale` times the tight one.
+SceneDesc bench_scene(const std::string& material, long particles, double domain_scale) {
+  SceneDesc s;
+  s.file = "bench";
+  const double cells_per_side = std::cbrt(particles / 8.0);
+  const int dims = static_cast<int>(std::ceil((cells_per_side + 12) * domain_scale));
+  const double h = 1.0 / dims;
+  s.grid.dims = Vec3i::Constant(dims);
+  s.grid.max = Vec3::Ones();
+  s.simulation.dt = 1e-4;
+  ObjectDesc o;
+  o.name = "cube";
+  o.mesh = std::filesystem::path(MPM_SOURCE_DIR) / "scenes/meshes/cube.obj";
+  o.scale = Vec3::Constant(cells_per_side * h);
+  o.offset = Vec3(0.5, (5 + cells_per_side / 2) * h, 0.5);
+  o.velocity = Vec3(0, -1, 0);
+  o.density = material == "snow" ? 400 : 1000;
+  o.material = material;
+  o.params = {{"E", material == "snow" ? 1.4e5 : 1e5}, {"nu", 0.3}};
+  if (material == "snow")
+    o.params.insert({{"critical_compression", 2.5e-2}, {"critical_stretch", 7.5e-3},
+                     {"hardening", 10}});
+  s.objects.push_back(o);
+  WallDesc floor;
+  floor.point = Vec3(0, 4 * h, 0);
+  floor.boundary = Boundary::slip;
+  s.walls.push_back(floor);
+  return s;
+}
+
+BenchResult run_case(const std::string& name, const BenchOptions& opt) {
+  SceneDesc scene;
+  if (name == "jello") scene = bench_scene("corotated", opt.particles, 1);
+  else if (name == "snow") scene = bench_scene("snow", opt.particles, 1);
+  else if (name == "sparse") scene = bench_scene("corotated", opt.particles, 2);
+  else throw std::invalid_argument("unknown bench case '" + name + "'; expected jello, snow or sparse");
+  const auto sim = Simulation::create(scene, builtin_registry());
+  BenchResult r;
+  r.name = name;
+  r.particles = static_cast<long>(sim->particles().size());
+  r.grid_nodes = static_cast<long>(sim->grid().mass.size());
+  r.substeps = opt.substeps;
+  r.threads = omp_get_max_threads();
+  const Real dt = *scene.simulation.dt;
+  for (int s = 0; s < 2; ++s) sim->substep(dt);  // warm-up
+  std::vector<double> rates;
+  std::vector<std::vector<double>> stage_runs;
+  for (int rep = 0; rep < opt.repeats; ++rep) {
+    std::vector<double> before;
+    for (const Stage& st : sim->stages()) before.push_back(st.seconds);
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int s = 0; s < opt.substeps; ++s) sim->substep(dt);
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    rates.push_back(static_cast<double>(r.particles) * opt.substeps / secs);
+    std::vector<double> stage;
+    for (std::size_t i = 0; i < sim->stages().size(); ++i)
+      stage.push_back((sim->stages()[i].seconds - before[i]) * 1e9 /
+                      (static_cast<double>(r.particles) * opt.substeps));
+    stage_runs.push_back(stage);
+  }
+  // The median repetition by rate, and its stage breakdown.
+  std::vector<int> order(rates.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return rates[a] < rates[b]; });
+  const int mid = order[order.size() / 2];
+  r.particle_steps_per_second = rates[mid];
+  for (std::size_t i = 0; i < sim->stages().size(); ++i)
+    r.stage_ns.emplace_back(sim->stages()[i].name, stage_runs[mid][i]);
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  r.peak_rss_bytes_per_particle = u.ru_maxrss * 1024.0 / r.particles;
+  return r;
+}
+
+std::string serialize(const BenchResult& r) {
+  std::ostringstream s;
+  s.precision(17);
+  s << r.name << ' ' << r.particles << ' ' << r.grid_nodes << ' ' << r.substeps << ' '
+    << r.threads << ' ' << r.particle_steps_per_second << ' ' << r.peak_rss_bytes_per_particle;
+  for (const auto& [n, v] : r.stage_ns) s << ' ' << n << ' ' << v;
+  return s.str();
+}
+
+BenchResult deserialize(const std::string& text) {
+  std::istringstream s(text);
+  BenchResult r;
+  s >> r.name >> r.particles >> r.grid_nodes >> r.substeps >> r.threads >>
+      r.particle_steps_per_second >> r.peak_rss_bytes_per_particle;
+  std::string n;
+  double v;
+  while (s >> n >> v) r.stage_ns.emplace_back(n, v);
+  return r;
+}
+
+}  // namespace
+
+std::vector<BenchResult> run_benchmarks(const BenchOptions& opt) {
+  if (opt.threads > 0) omp_set_num_threads(opt.threads);
+  std::vector<BenchResult> out;
+  for (const std::string& name : opt.cases) {
+    if (name != "jello" && name != "snow" && name != "sparse")
+      throw std::invalid_argument("unknown bench case '" + name +
+                                  "'; expected jello, snow or sparse");
+    int fds[2];
+    if (pipe(fds) != 0) throw std::runtime_error("bench: cannot create a pipe");
+    const pid_t pid = fork();
+    if (pid == 0) {  // child: one case, so its peak memory is its own
+      close(fds[0]);
+      const std::string line = serialize(run_case(name, opt)) + "\n";
+      if (write(fds[1], line.data(), line.size()) < 0) _exit(1);
+      _exit(0);
+    }
+    close(fds[1]);
+    std::string text;
+    char buf[4096];
+    for (ssize_t n; (n = read(fds[0], buf, sizeof buf)) > 0;) text.append(buf, n);
+    close(fds[0]);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || text.empty())
+      throw std::runtime_error("bench case '" + name + "' failed");
+    out.push_back(deserialize(text));
+  }
+  return out;
+}
+
+std::string format_bench_table(const std::vector<BenchResult>& results) {
+  std::ostringstream s;
+  char line[512];
+  std::snprintf(line, sizeof line, "mpm bench  (precision: %s, commit %s)\n",
+                sizeof(Real) == 8 ? "double" : "float", MPM_GIT_COMMIT);
+  s << line;
+  std::snprintf(line, sizeof line, "%-8s %10s %10s %8s %7s %14s %10s\n", "case", "particles",
+                "nodes", "substeps", "threads", "Mparticle-st/s", "B/particle");
+  s << line;
+  for (const BenchResult& r : results) {
+    std::snprintf(line, sizeof line, "%-8s %10ld %10ld %8d %7d %14.3f %10.0f\n", r.name.c_str(),
+                  r.particles, r.grid_nodes, r.substeps, r.threads,
+                  r.particle_steps_per_second / 1e6, r.peak_rss_bytes_per_particle);
+    s << line;
+  }
+  s << "\nns per particle-step by stage\n";
+  for (const BenchResult& r : results) {
+    s << r.name << ":";
+    for (const auto& [n, v] : r.stage_ns) {
+      std::snprintf(line, sizeof line, " %s %.1f", n.c_str(), v);
+      s << line;
+    }
+    s << "\n";
+  }
+  return s.str();
+}
+
+std::string format_bench_csv(const std::vector<BenchResult>& results) {
+  std::ostringstream s;
+  s << "case,particles,grid_nodes,substeps,threads,precision,commit,particle_steps_per_second,"
+       "peak_rss_bytes_per_particle,stage,ns_per_particle_step\n";
+  for (const BenchResult& r : results)
+    for (const auto& [n, v] : r.stage_ns)
+      s << r.name << ',' << r.particles << ',' << r.grid_nodes << ',' << r.substeps << ','
+        << r.threads << ',' << (sizeof(Real) == 8 ? "double" : "float") << ',' << MPM_GIT_COMMIT
+        << ',' << r.particle_steps_per_second << ',' << r.peak_rss_bytes_per_particle << ',' << n
+        << ',' << v << '\n';
+  return s.str();
+}
+
+}  // namespace mpm

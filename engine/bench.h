@@ -1,0 +1,40 @@
+#pragma once
+/// \file `mpm bench`: standard cases timed by the engine itself.
+
+#include <string>
+#include <vector>
+
+namespace mpm {
+
+/// What to benchmark.
+struct BenchOptions {
+  std::vector<std::string> cases{"jello", "snow", "sparse"};  ///< Case names.
+  long particles = 100000;  ///< Target particle count per case (sparse and jello alike).
+  int substeps = 20;        ///< Substeps per timed repetition.
+  int repeats = 3;          ///< Timed repetitions (the median is reported), after one warm-up.
+  int threads = 0;          ///< 0: all cores.
+};
+
+/// One case's measurements.
+struct BenchResult {
+  std::string name;                  ///< Case name.
+  long particles = 0;                ///< Particles simulated.
+  long grid_nodes = 0;               ///< Nodes of the background grid.
+  int substeps = 0;                  ///< Substeps per repetition.
+  int threads = 0;                   ///< Threads used.
+  double particle_steps_per_second = 0;  ///< Median over repetitions.
+  double peak_rss_bytes_per_particle = 0;  ///< Peak resident memory of the case / particles.
+  std::vector<std::pair<std::string, double>> stage_ns;  ///< ns per particle-step per stage.
+};
+
+/// Runs each case in its own child process (so peak memory is per case) and returns results.
+/// Throws std::invalid_argument for an unknown case name.
+std::vector<BenchResult> run_benchmarks(const BenchOptions& options);
+
+/// The results as an aligned text table, with precision and commit in the header.
+std::string format_bench_table(const std::vector<BenchResult>& results);
+
+/// The results as CSV (one row per case and stage).
+std::string format_bench_csv(const std::vector<BenchResult>& results);
+
+}  // namespace mpm
