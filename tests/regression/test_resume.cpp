@@ -124,3 +124,26 @@ TEST_CASE("SIGINT stops a run cleanly: frames whole, report says interrupted", "
   CHECK(run_mpm("run " + scene.string() + " --frames " + std::to_string(frames + 1) +
             " --quiet --resume " + out) == 0);
 }
+
+TEST_CASE("a run made unstable on purpose stops with a diagnosis and keeps its frames",
+          "[regression]") {
+  const auto dir = test::temp_dir("unstable");
+  const std::string out = (dir / "out").string();
+  // dt = 0.02 s is about seven times the CFL bound of jello_cube (0.0028 s): it must be caught.
+  CHECK(run_mpm("run " + (test::source_dir() / "scenes/jello_cube.yaml").string() +
+                " --set simulation.dt=0.02 --frames 20 --quiet --out " + out) == 1);
+  const YAML::Node report = YAML::LoadFile(out + "/report.yaml");
+  CHECK(report["status"].as<std::string>() == "unstable");
+  const YAML::Node why = report["instability"];
+  REQUIRE(why.IsMap());
+  CHECK(why["object"].as<std::string>() == "jello");
+  CHECK(why["cause"].as<std::string>().find("cells per substep") != std::string::npos);
+  const double suggested = why["suggested_dt"].as<double>();
+  CHECK(suggested > 0);
+  CHECK(suggested < 0.0028);
+  const int frames = report["frames"].as<int>();
+  CHECK(why["frame"].as<int>() == frames + 1);  // stopped while computing the next frame
+  CHECK(why["substep"].as<std::size_t>() == report["substeps"].as<std::size_t>());
+  for (int f = 0; f <= frames; ++f) CHECK_NOTHROW(read_frame_hdf5(frame_path(out, f)));
+  CHECK_FALSE(std::filesystem::exists(frame_path(out, frames + 1)));
+}
