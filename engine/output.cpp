@@ -1,5 +1,7 @@
 #include "engine/output.h"
 
+#include "engine/io/atomic_file.h"
+
 #include "engine/io/bgeo.h"
 #include "engine/io/ply.h"
 #include "engine/io/preview.h"
@@ -81,8 +83,7 @@ void write_frame_hdf5(const std::filesystem::path& file, const Particles& p, Rea
     object[i] = static_cast<int>(p.object[i]);
   }
   quiet_hdf5();
-  std::filesystem::path tmp = file;
-  tmp += ".tmp";
+  const std::filesystem::path tmp = temporary_path(file);
   {
     H5Handle f{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose};
     if (f.id < 0) throw std::runtime_error("cannot create frame file '" + tmp.string() + "'");
@@ -95,9 +96,7 @@ void write_frame_hdf5(const std::filesystem::path& file, const Particles& p, Rea
     write_attribute(f.id, "frame", H5T_STD_I32LE, H5T_NATIVE_INT, frame);
     check(H5Fflush(f.id, H5F_SCOPE_GLOBAL), "frame file");
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) throw std::runtime_error("cannot rename '" + tmp.string() + "': " + ec.message());
+  replace_file(tmp, file);
 }
 
 namespace {
@@ -203,8 +202,7 @@ void read_doubles(hid_t file, const char* name, std::vector<T>& v, std::size_t w
 
 void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, int frame) {
   quiet_hdf5();
-  std::filesystem::path tmp = file;
-  tmp += ".tmp";
+  const std::filesystem::path tmp = temporary_path(file);
   const Particles& p = sim.particles();
   {
     H5Handle f{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose};
@@ -225,9 +223,7 @@ void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, 
                     static_cast<unsigned long long>(sim.substeps()));
     check(H5Fflush(f.id, H5F_SCOPE_GLOBAL), "checkpoint");
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) throw std::runtime_error("cannot rename '" + tmp.string() + "': " + ec.message());
+  replace_file(tmp, file);
 }
 
 int restore_checkpoint(const std::filesystem::path& file, Simulation& sim) {
@@ -370,16 +366,7 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
 
   std::error_code ec;
   std::filesystem::create_directories(dir_, ec);
-  const std::filesystem::path file = dir_ / "report.yaml";
-  std::filesystem::path tmp = file;
-  tmp += ".tmp";
-  {
-    std::ofstream out(tmp);
-    out << y.c_str() << "\n";
-    if (!out) throw std::runtime_error("cannot write '" + tmp.string() + "'");
-  }
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) throw std::runtime_error("cannot write '" + file.string() + "': " + ec.message());
+  write_file_whole(dir_ / "report.yaml", std::string(y.c_str()) + "\n");
 }
 
 }  // namespace mpm

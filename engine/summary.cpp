@@ -1,5 +1,7 @@
 #include "engine/summary.h"
 
+#include "engine/io/atomic_file.h"
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -163,18 +165,7 @@ void write_summary(const std::filesystem::path& file, const RunSummary& summary)
   const std::string text = summary_to_yaml(summary);
   std::error_code ec;
   if (file.has_parent_path()) std::filesystem::create_directories(file.parent_path(), ec);
-  std::filesystem::path tmp = file;
-  tmp += ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out << text;
-    out.flush();
-    if (!out) throw std::runtime_error("cannot write summary '" + tmp.string() + "'");
-  }
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) {
-    throw std::runtime_error("cannot write summary '" + file.string() + "': " + ec.message());
-  }
+  write_file_whole(file, text);
 }
 
 // ---------------------------------------------------------------------------------------------

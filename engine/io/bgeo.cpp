@@ -1,5 +1,7 @@
 #include "engine/io/bgeo.h"
 
+#include "engine/io/atomic_file.h"
+
 #include <bit>
 #include <cstdint>
 #include <fstream>
@@ -111,8 +113,7 @@ void write_bgeo(const std::filesystem::path& file, const FrameView& frame) {
     for (int k = 0; k < a.size; ++k) put_be(buf, 0);  // default value
   }
 
-  std::filesystem::path tmp = file;
-  tmp += ".tmp";
+  const std::filesystem::path tmp = temporary_path(file);
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) throw std::runtime_error("cannot create '" + tmp.string() + "'");
@@ -138,9 +139,7 @@ void write_bgeo(const std::filesystem::path& file, const FrameView& frame) {
       throw std::runtime_error("cannot write '" + tmp.string() + "'");
     }
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) throw std::runtime_error("cannot rename '" + tmp.string() + "': " + ec.message());
+  replace_file(tmp, file);
 }
 
 BgeoPoints read_bgeo(const std::filesystem::path& file) {

@@ -1,5 +1,7 @@
 #include "engine/io/ply.h"
 
+#include "engine/io/atomic_file.h"
+
 #include <bit>
 #include <charconv>
 #include <cstdint>
@@ -74,8 +76,7 @@ void write_ply(const std::filesystem::path& file, const FrameView& frame) {
   for (const char* p : kProperties) header += std::string(p) + "\n";
   header += "end_header\n";
 
-  std::filesystem::path tmp = file;
-  tmp += ".tmp";
+  const std::filesystem::path tmp = temporary_path(file);
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) throw std::runtime_error("cannot create '" + tmp.string() + "'");
@@ -101,9 +102,7 @@ void write_ply(const std::filesystem::path& file, const FrameView& frame) {
       throw std::runtime_error("cannot write '" + tmp.string() + "'");
     }
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) throw std::runtime_error("cannot rename '" + tmp.string() + "': " + ec.message());
+  replace_file(tmp, file);
 }
 
 PlyPoints read_ply(const std::filesystem::path& file) {

@@ -1,5 +1,7 @@
 #include "engine/io/preview.h"
 
+#include "engine/io/atomic_file.h"
+
 #include <png.h>
 
 #include <algorithm>
@@ -165,8 +167,7 @@ void write_png(const std::filesystem::path& file, const RgbImage& image) {
   if (image.width < 1 || image.height < 1 ||
       image.pixels.size() != 3 * static_cast<std::size_t>(image.width) * image.height)
     throw std::runtime_error("cannot write '" + file.string() + "': image has a bad size");
-  std::filesystem::path tmp = file;
-  tmp += ".tmp";
+  const std::filesystem::path tmp = temporary_path(file);
   png_image png{};
   png.version = PNG_IMAGE_VERSION;
   png.width = static_cast<png_uint_32>(image.width);
@@ -180,9 +181,7 @@ void write_png(const std::filesystem::path& file, const RgbImage& image) {
     std::filesystem::remove(tmp, ignore);
     throw std::runtime_error("cannot write PNG '" + tmp.string() + "': " + why);
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) throw std::runtime_error("cannot rename '" + tmp.string() + "': " + ec.message());
+  replace_file(tmp, file);
 }
 
 RgbImage read_png(const std::filesystem::path& file) {

@@ -1,5 +1,7 @@
 #include "engine/io/xdmf.h"
 
+#include "engine/io/atomic_file.h"
+
 #include <charconv>
 #include <cmath>
 #include <fstream>
@@ -97,22 +99,7 @@ void write_xdmf(const std::filesystem::path& xmf_file, const std::vector<XdmfFra
   x += "  </Domain>\n";
   x += "</Xdmf>\n";
 
-  std::filesystem::path tmp = xmf_file;
-  tmp += ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error("cannot create '" + tmp.string() + "'");
-    out.write(x.data(), static_cast<std::streamsize>(x.size()));
-    out.close();
-    if (!out) {
-      std::error_code ignore;
-      std::filesystem::remove(tmp, ignore);
-      throw std::runtime_error("cannot write '" + tmp.string() + "'");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, xmf_file, ec);
-  if (ec) throw std::runtime_error("cannot rename '" + tmp.string() + "': " + ec.message());
+  write_file_whole(xmf_file, x);
 }
 
 }  // namespace mpm
