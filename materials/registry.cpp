@@ -41,13 +41,16 @@ MaterialInfo snow_info() {
   ParamSpec ts{"critical_stretch", "", "theta_s: elastic singular values <= 1 + theta_s", false,
                7.5e-3, 0, 1e300};
   ParamSpec xi{"hardening", "", "xi: moduli scale by exp(xi (1 - Jp))", false, 10, 0, 1e300};
-  params.insert(params.end(), {tc, ts, xi});
+  ParamSpec jp{"min_Jp", "", "smallest plastic volume ratio Jp (0: no clamp); bounds hardening",
+               false, 0, 0, 1, false, true};
+  params.insert(params.end(), {tc, ts, xi, jp});
   return {"snow", "fixed corotated with hardening and singular-value clamping (plastic)",
           "Stomakhin et al. 2013, A material point method for snow simulation", params, true,
           [](const ParamValues& v, const GroupInfo& g) {
             const Lame l = lame_from_young(v.at("E"), v.at("nu"));
             const materials::SnowPlasticity plastic{v.at("critical_compression"),
-                                                    v.at("critical_stretch"), v.at("hardening")};
+                                                    v.at("critical_stretch"), v.at("hardening"),
+                                                    v.at("min_Jp")};
             return std::make_unique<materials::SnowGroup>(
                 materials::FixedCorotated{l.mu, l.lambda}, plastic, g.density, g.count);
           }};

@@ -18,15 +18,19 @@ struct SnowPlasticity {
   Real critical_compression = 2.5e-2;  ///< theta_c: elastic singular values >= 1 - theta_c.
   Real critical_stretch = 7.5e-3;      ///< theta_s: elastic singular values <= 1 + theta_s.
   Real hardening = 10;                 ///< xi: mu, lambda scale by exp(xi (1 - Jp)).
+  Real min_Jp = 0;                     ///< Jp is kept >= this (0: no clamp, the paper's model).
 
   /// Moves the part of Fe outside the clamp range into the plastic part (section 7):
-  /// Fe = U clamp(Sigma) V^T and Jp *= det(Sigma) / det(clamp(Sigma)), so det(Fe) Jp is kept.
+  /// Fe = U clamp(Sigma) V^T and Jp *= det(Sigma) / det(clamp(Sigma)), so det(Fe) Jp is kept
+  /// (unless min_Jp clamps Jp).
   void project(Mat3& Fe, Real& Jp) const {
     Mat3 U, V;
     Vec3 s;
     svd_rv(Fe, U, s, V);
     const Vec3 c = s.cwiseMax(1 - critical_compression).cwiseMin(1 + critical_stretch);
-    Jp *= s.prod() / c.prod();
+    // A Jp clamp (as several codes do) bounds the hardening, and so the CFL step, at the
+    // price of not keeping det(Fe) Jp once it acts.
+    Jp = std::max(Jp * s.prod() / c.prod(), min_Jp);
     Fe = U * c.asDiagonal() * V.transpose();
   }
 
