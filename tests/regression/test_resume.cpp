@@ -147,3 +147,21 @@ TEST_CASE("a run made unstable on purpose stops with a diagnosis and keeps its f
   for (int f = 0; f <= frames; ++f) CHECK_NOTHROW(read_frame_hdf5(frame_path(out, f)));
   CHECK_FALSE(std::filesystem::exists(frame_path(out, frames + 1)));
 }
+
+TEST_CASE("mpm preview makes a movie where ffmpeg exists, and says why not elsewhere",
+          "[regression]") {
+  const auto dir = test::temp_dir("preview_movie");
+  const auto scene = small_scene(dir);
+  const std::string out = (dir / "out").string();
+  REQUIRE(run_mpm("run " + scene.string() + " --frames 2 --quiet --format png --out " + out) == 0);
+  const bool have_ffmpeg = std::system("command -v ffmpeg > /dev/null 2>&1") == 0;
+  const int code = run_mpm("preview " + out);
+  if (have_ffmpeg) {
+    CHECK(code == 0);
+    CHECK(std::filesystem::file_size(dir / "out" / "preview.mp4") > 1000);
+  } else {
+    CHECK(code == 1);  // the PNG frames are there; the movie needs ffmpeg
+    CHECK_FALSE(std::filesystem::exists(dir / "out" / "preview.mp4"));
+  }
+  CHECK(run_mpm("preview " + (dir / "nowhere").string()) == 2);
+}
