@@ -212,7 +212,7 @@ void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, 
     write_doubles(f.id, "F", p.F, 9);
     if (!p.C.empty()) write_doubles(f.id, "C", p.C, 9);
     for (std::size_t g = 0; g < sim.materials().size(); ++g) {
-      const std::span<Real> st = const_cast<MaterialGroup&>(*sim.materials()[g].material).state();
+      const std::span<Real> st = sim.materials()[g].material->state();
       const hsize_t dims[1] = {st.size()};
       const std::string name = "material_state_" + std::to_string(g);
       write_dataset(f.id, name.c_str(), H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 1, dims, st.data());
