@@ -31,8 +31,6 @@ constexpr AttributeDef kAttributes[] = {
 
 /// 32-bit values per point: P (4) then every attribute.
 constexpr std::size_t kValuesPerPoint = 4 + 3 + 1 + 1;
-/// Points buffered before each write.
-constexpr std::size_t kChunk = 1 << 15;
 
 /// Appends the low `bytes` bytes of `value` to `out`, most significant first.
 void put_be(std::string& out, std::uint32_t value, int bytes = 4) {
@@ -113,33 +111,18 @@ void write_bgeo(const std::filesystem::path& file, const FrameView& frame) {
     for (int k = 0; k < a.size; ++k) put_be(buf, 0);  // default value
   }
 
-  const std::filesystem::path tmp = temporary_path(file);
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error("cannot create '" + tmp.string() + "'");
-    for (std::size_t i = 0; i < n; ++i) {
-      for (int a = 0; a < 3; ++a) put_float(buf, frame.position[i][a]);
-      put_float(buf, 1.0);  // homogeneous w
-      for (int a = 0; a < 3; ++a) put_float(buf, frame.velocity[i][a]);
-      put_be(buf, frame.object_id[i]);
-      put_float(buf, frame.J[i]);
-      if (buf.size() >= kChunk * kValuesPerPoint * 4) {
-        out.write(buf.data(), static_cast<std::streamsize>(buf.size()));
-        buf.clear();
-      }
-    }
-    // No primitives and no detail attributes follow; then the "extra" section markers.
-    buf.push_back('\x00');
-    buf.push_back('\xff');
-    out.write(buf.data(), static_cast<std::streamsize>(buf.size()));
-    out.close();
-    if (!out) {
-      std::error_code ignore;
-      std::filesystem::remove(tmp, ignore);
-      throw std::runtime_error("cannot write '" + tmp.string() + "'");
-    }
+  buf.reserve(buf.size() + n * kValuesPerPoint * 4 + 2);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int a = 0; a < 3; ++a) put_float(buf, frame.position[i][a]);
+    put_float(buf, 1.0);  // homogeneous w
+    for (int a = 0; a < 3; ++a) put_float(buf, frame.velocity[i][a]);
+    put_be(buf, frame.object_id[i]);
+    put_float(buf, frame.J[i]);
   }
-  replace_file(tmp, file);
+  // No primitives and no detail attributes follow; then the "extra" section markers.
+  buf.push_back('\x00');
+  buf.push_back('\xff');
+  write_file_whole(file, buf);
 }
 
 BgeoPoints read_bgeo(const std::filesystem::path& file) {

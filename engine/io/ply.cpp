@@ -18,8 +18,6 @@ namespace {
 
 /// Bytes per vertex: 7 floats and one int.
 constexpr std::size_t kRecordBytes = 8 * 4;
-/// Vertices buffered before each write.
-constexpr std::size_t kChunk = 1 << 15;
 
 /// The property lines write_ply writes, in order.
 constexpr const char* kProperties[] = {
@@ -76,33 +74,17 @@ void write_ply(const std::filesystem::path& file, const FrameView& frame) {
   for (const char* p : kProperties) header += std::string(p) + "\n";
   header += "end_header\n";
 
-  const std::filesystem::path tmp = temporary_path(file);
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error("cannot create '" + tmp.string() + "'");
-    out.write(header.data(), static_cast<std::streamsize>(header.size()));
-    std::string buf;
-    buf.reserve(kChunk * kRecordBytes);
-    for (std::size_t i = 0; i < n; ++i) {
-      for (int a = 0; a < 3; ++a)
-        put_le(buf, std::bit_cast<std::uint32_t>(float(frame.position[i][a])));
-      for (int a = 0; a < 3; ++a)
-        put_le(buf, std::bit_cast<std::uint32_t>(float(frame.velocity[i][a])));
-      put_le(buf, frame.object_id[i]);
-      put_le(buf, std::bit_cast<std::uint32_t>(float(frame.J[i])));
-      if (buf.size() >= kChunk * kRecordBytes || i + 1 == n) {
-        out.write(buf.data(), static_cast<std::streamsize>(buf.size()));
-        buf.clear();
-      }
-    }
-    out.close();
-    if (!out) {
-      std::error_code ignore;
-      std::filesystem::remove(tmp, ignore);
-      throw std::runtime_error("cannot write '" + tmp.string() + "'");
-    }
+  std::string bytes = std::move(header);
+  bytes.reserve(bytes.size() + n * kRecordBytes);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int a = 0; a < 3; ++a)
+      put_le(bytes, std::bit_cast<std::uint32_t>(float(frame.position[i][a])));
+    for (int a = 0; a < 3; ++a)
+      put_le(bytes, std::bit_cast<std::uint32_t>(float(frame.velocity[i][a])));
+    put_le(bytes, frame.object_id[i]);
+    put_le(bytes, std::bit_cast<std::uint32_t>(float(frame.J[i])));
   }
-  replace_file(tmp, file);
+  write_file_whole(file, bytes);
 }
 
 PlyPoints read_ply(const std::filesystem::path& file) {
