@@ -44,7 +44,8 @@ void sort_particles(const Particles& p, Grid& grid, ParticleOrder& ord) {
     const Vec3i b = stencil_base(p.x[i], grid) - lo;
     return (static_cast<std::size_t>(b.x()) * ext.y() + b.y()) * ext.z() + b.z();
   };
-  std::vector<std::uint32_t> keys(n);
+  std::vector<std::uint32_t>& keys = ord.keys;  // reused: no allocation per substep
+  keys.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     keys[i] = static_cast<std::uint32_t>(key(i));
     ++ord.counts[keys[i] + 1];

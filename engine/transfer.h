@@ -20,6 +20,7 @@ struct ParticleOrder {
   std::vector<std::uint32_t> order;     ///< Particle indices sorted by stencil base cell.
   std::vector<std::size_t> slab_start;  ///< order[slab_start[s] .. slab_start[s+1]) is slab s.
   std::vector<std::uint32_t> counts;    ///< Scratch for the counting sort.
+  std::vector<std::uint32_t> keys;      ///< Scratch: each particle's cell key, kept between substeps.
 };
 
 /// Sorts particles by stencil cell and sets grid.active to the nodes they touch.
