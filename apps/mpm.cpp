@@ -15,6 +15,7 @@
 #include <spdlog/spdlog.h>
 
 #include "engine/bench.h"
+#include "engine/validation/study.h"
 #include "engine/load_scene.h"
 #include "engine/output.h"
 #include "engine/progress.h"
@@ -38,6 +39,10 @@ Usage:
   mpm preview DIR [--fps N]      join DIR/preview/frame_*.png into DIR/preview.mp4 (ffmpeg)
   mpm bench [--cases jello,snow,sparse] [--particles N] [--threads N] [--csv FILE]
                                  time standard cases (median of 3 after a warm-up)
+  mpm study [--quick] [--cases SWEEP,...] -o DIR
+                                 run the validation cases over sweeps of h, particles per
+                                 cell, CFL, dt, transfer and kernel; write DIR/study.csv and
+                                 DIR/series.csv (docs/accuracy.md)
   mpm golden SCENE.yaml --frames N -o FILE
                                  run N frames and write the run summary to FILE (a golden)
   mpm compare A B [--tol QUANTITY=VALUE ...]
@@ -71,12 +76,19 @@ struct Args {
   std::optional<long> particles;
   std::optional<int> frames, threads, fps;
   std::vector<std::string> sets;
-  bool quiet = false, force = false;
+  bool quiet = false, force = false, quick = false;
 };
 
 [[noreturn]] void usage_error(const std::string& what) {
   std::fprintf(stderr, "mpm: %s\n(run 'mpm --help' for usage)\n", what.c_str());
   std::exit(mpm::kExitBadInput);
+}
+
+std::vector<std::string> split_list(const std::string& text) {
+  std::vector<std::string> items;
+  std::stringstream list(text);
+  for (std::string c; std::getline(list, c, ',');) items.push_back(c);
+  return items;
 }
 
 int parse_count(const std::string& flag, const std::string& value, int min) {
@@ -131,6 +143,8 @@ Args parse_args(int argc, char** argv) {
       a.fps = parse_count(w, value(), 1);
     } else if (w == "--force") {
       a.force = true;
+    } else if (w == "--quick") {
+      a.quick = true;
     } else if (w == "--quiet") {
       a.quiet = true;
     } else if (w == "--log-level") {
@@ -215,15 +229,19 @@ int main(int argc, char** argv) {
     std::printf("%s\n", (dir / "preview.mp4").c_str());
     return mpm::kExitOk;
   }
+  if (args.command == "study") {
+    if (args.output_file.empty()) usage_error("'mpm study' needs -o DIR");
+    mpm::validation::StudyOptions opt;
+    opt.quick = args.quick;
+    opt.threads = args.threads.value_or(0);
+    opt.experiments = split_list(args.cases);
+    return mpm::validation::study_main(opt, args.output_file);
+  }
   if (args.command == "bench") {
     mpm::BenchOptions opt;
     if (args.threads) opt.threads = *args.threads;
     if (args.particles) opt.particles = *args.particles;
-    if (!args.cases.empty()) {
-      opt.cases.clear();
-      std::stringstream list(args.cases);
-      for (std::string c; std::getline(list, c, ',');) opt.cases.push_back(c);
-    }
+    if (!args.cases.empty()) opt.cases = split_list(args.cases);
     try {
       const auto results = mpm::run_benchmarks(opt);
       std::printf("%s", mpm::format_bench_table(results).c_str());

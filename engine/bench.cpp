@@ -1,9 +1,5 @@
 #include "engine/bench.h"
 
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -13,6 +9,7 @@
 
 #include <omp.h>
 
+#include "engine/child_process.h"
 #include "engine/simulation.h"
 
 namespace mpm {
@@ -88,9 +85,7 @@ BenchResult run_case(const std::string& name, const BenchOptions& opt) {
   r.particle_steps_per_second = rates[mid];
   for (std::size_t i = 0; i < sim->stages().size(); ++i)
     r.stage_ns.emplace_back(sim->stages()[i].name, stage_runs[mid][i]);
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  r.peak_rss_bytes_per_particle = u.ru_maxrss * 1024.0 / r.particles;
+  r.peak_rss_bytes_per_particle = peak_rss_bytes() / r.particles;
   return r;
 }
 
@@ -123,24 +118,8 @@ std::vector<BenchResult> run_benchmarks(const BenchOptions& opt) {
     if (name != "jello" && name != "snow" && name != "sparse")
       throw std::invalid_argument("unknown bench case '" + name +
                                   "'; expected jello, snow or sparse");
-    int fds[2];
-    if (pipe(fds) != 0) throw std::runtime_error("bench: cannot create a pipe");
-    const pid_t pid = fork();
-    if (pid == 0) {  // child: one case, so its peak memory is its own
-      close(fds[0]);
-      const std::string line = serialize(run_case(name, opt)) + "\n";
-      if (write(fds[1], line.data(), line.size()) < 0) _exit(1);
-      _exit(0);
-    }
-    close(fds[1]);
-    std::string text;
-    char buf[4096];
-    for (ssize_t n; (n = read(fds[0], buf, sizeof buf)) > 0;) text.append(buf, n);
-    close(fds[0]);
-    int status = 0;
-    waitpid(pid, &status, 0);
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || text.empty())
-      throw std::runtime_error("bench case '" + name + "' failed");
+    const std::string text =
+        run_in_child([&] { return serialize(run_case(name, opt)) + "\n"; }, "bench case '" + name + "'");
     out.push_back(deserialize(text));
   }
   return out;

@@ -1,5 +1,7 @@
 #include "engine/grid.h"
 
+#include <cmath>
+
 namespace mpm {
 
 Grid::Grid(const GridDesc& d, bool keep_old_velocity)
@@ -37,6 +39,11 @@ void apply_gravity(Real dt, const Vec3& gravity, Grid& g) {
   for_each_active_node(g, [&](int, int, int, std::size_t idx) {
     if (g.mass[idx] > 0) g.velocity[idx] += dv;
   });
+}
+
+void apply_damping(Real dt, Real rate, Grid& g) {
+  const Real factor = std::exp(-rate * dt);
+  for_each_active_node(g, [&](int, int, int, std::size_t idx) { g.velocity[idx] *= factor; });
 }
 
 }  // namespace mpm

@@ -66,4 +66,7 @@ void apply_stress_forces(Real dt, Grid& grid);
 /// v_i += dt g on nodes with mass.
 void apply_gravity(Real dt, const Vec3& gravity, Grid& grid);
 
+/// v_i *= exp(-rate dt): viscous damping toward rest, for settling to static equilibrium.
+void apply_damping(Real dt, Real rate, Grid& grid);
+
 }  // namespace mpm

@@ -34,6 +34,13 @@ SimulationDesc read_simulation(ParamReader r) {
   else r.fail("transfer", "unknown transfer '" + transfer + "'; expected apic, pic or flip");
   s.flip_blend = r.get_or("flip_blend", s.flip_blend);
   r.check_range("flip_blend", s.flip_blend, 0, 1);
+  const std::string kernel = r.get_or<std::string>("kernel", "quadratic");
+  if (kernel == "linear") s.kernel = Kernel::linear;
+  else if (kernel == "quadratic") s.kernel = Kernel::quadratic;
+  else if (kernel == "cubic") s.kernel = Kernel::cubic;
+  else r.fail("kernel", "unknown kernel '" + kernel + "'; expected linear, quadratic or cubic");
+  s.damping = r.get_or("damping", s.damping);
+  r.check_range("damping", s.damping, 0, 1e300);
   s.seed = r.get_or<std::uint64_t>("seed", s.seed);
   r.finish();
   return s;
@@ -138,6 +145,8 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
   o.rotation_deg = r.get_or("rotation", o.rotation_deg);
   o.offset = r.get_or("offset", o.offset);
   o.velocity = r.get_or("velocity", o.velocity);
+  o.angular_velocity = r.get_or("angular_velocity", o.angular_velocity);
+  o.velocity_gradient = r.get_or("velocity_gradient", o.velocity_gradient);
   o.mass = r.get<double>("mass");
   o.density = r.get<double>("density");
   if (o.mass && o.density) r.fail("density", "give 'mass' or 'density', not both");

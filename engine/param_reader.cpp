@@ -197,6 +197,21 @@ Vec2i convert<Vec2i>(const YAML::Node& n, const ParamReader& r, const std::strin
   return Vec2i(convert<int>(n[0], r, key), convert<int>(n[1], r, key));
 }
 
+template <>
+Mat3 convert<Mat3>(const YAML::Node& n, const ParamReader& r, const std::string& key) {
+  const auto bad = [&] {
+    r.fail(key, "expected three rows of three numbers [[a, b, c], [d, e, f], [g, h, i]], found " +
+                    describe(n));
+  };
+  if (!n.IsSequence() || n.size() != 3) bad();
+  Mat3 m;
+  for (int i = 0; i < 3; ++i) {
+    if (!n[i].IsSequence() || n[i].size() != 3) bad();
+    for (int j = 0; j < 3; ++j) m(i, j) = parse_double(n[i][j], r, key);
+  }
+  return m;
+}
+
 }  // namespace
 
 template <class T>
@@ -219,6 +234,7 @@ template std::optional<std::string> ParamReader::get<std::string>(const std::str
 template std::optional<Vec3> ParamReader::get<Vec3>(const std::string&);
 template std::optional<Vec3i> ParamReader::get<Vec3i>(const std::string&);
 template std::optional<Vec2i> ParamReader::get<Vec2i>(const std::string&);
+template std::optional<Mat3> ParamReader::get<Mat3>(const std::string&);
 template double ParamReader::require<double>(const std::string&);
 template int ParamReader::require<int>(const std::string&);
 template std::string ParamReader::require<std::string>(const std::string&);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "engine/error.h"
+#include "engine/kernels.h"
 #include "engine/math.h"
 #include "materials/material.h"
 
@@ -32,6 +33,8 @@ struct SimulationDesc {
   Vec3 gravity{0, -9.81, 0};          ///< m/s^2.
   Transfer transfer = Transfer::apic; ///< Transfer scheme.
   double flip_blend = 0.95;           ///< FLIP fraction when transfer is flip.
+  Kernel kernel = Kernel::quadratic;  ///< Interpolation kernel.
+  double damping = 0;                 ///< Grid velocity damping rate, 1/s (0: none).
   std::uint64_t seed = 1;             ///< Seed for particle sampling.
 };
 
@@ -54,7 +57,9 @@ struct ObjectDesc {
   Vec3 scale{1, 1, 1};             ///< Scale per axis, applied first.
   Vec3 rotation_deg{0, 0, 0};      ///< Degrees about x, then y, then z.
   Vec3 offset{0, 0, 0};            ///< Where the mesh origin goes, m.
-  Vec3 velocity{0, 0, 0};          ///< Initial velocity, m/s.
+  Vec3 velocity{0, 0, 0};          ///< Initial velocity of the centroid, m/s.
+  Vec3 angular_velocity{0, 0, 0};  ///< Initial spin about the centroid, rad/s.
+  Mat3 velocity_gradient = Mat3::Zero();  ///< Initial dv/dx about the centroid (adds to spin), 1/s.
   std::optional<double> mass;      ///< Total mass, kg (or density).
   std::optional<double> density;   ///< kg/m^3 (or mass).
   int particles_per_cell = 8;      ///< Particles per grid cell.

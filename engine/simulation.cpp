@@ -65,6 +65,7 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
   const Real cell_volume = h.prod();
   const Vec3 interior_lo = scene.grid.origin + scene.grid.buffer * h;
   const Vec3 interior_hi = scene.grid.max - scene.grid.buffer * h;
+  std::vector<Mat3> affine;  // initial velocity gradient per particle (APIC's C)
 
   for (std::size_t o = 0; o < scene.objects.size(); ++o) {
     const ObjectDesc& od = scene.objects[o];
@@ -102,8 +103,15 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     const Real density = total_mass / (v0 * n);
     ObjectInfo info{od.name, od.material, P.size(), n, total_mass, density};
 
+    // v = v0 + L (x - centroid), L = velocity_gradient + skew(angular_velocity).
+    Vec3 centroid = Vec3::Zero();
+    for (const Vec3& x : points) centroid += x / static_cast<Real>(n);
+    const Vec3& w = od.angular_velocity;
+    Mat3 L = od.velocity_gradient;
+    L += (Mat3() << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0).finished();
     P.x.insert(P.x.end(), points.begin(), points.end());
-    P.v.insert(P.v.end(), n, od.velocity);
+    for (const Vec3& x : points) P.v.push_back(od.velocity + L * (x - centroid));
+    affine.insert(affine.end(), n, L);
     P.F.insert(P.F.end(), n, Mat3::Identity());
     P.mass.insert(P.mass.end(), n, total_mass / n);
     P.volume0.insert(P.volume0.end(), n, v0);
@@ -116,7 +124,7 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     sim->objects_.push_back(info);
   }
   const std::size_t n = P.size();
-  if (scene.simulation.transfer == Transfer::apic) P.C.assign(n, Mat3::Zero());
+  if (scene.simulation.transfer == Transfer::apic) P.C = std::move(affine);
   P.stress.assign(n, Mat3::Zero());
   P.grad_v.assign(n, Mat3::Zero());
   sim->walls_ = build_wall_planes(scene.walls);
@@ -130,7 +138,7 @@ void Simulation::build_stages() {
   auto add = [&](std::string name, std::function<void(Real)> fn) {
     stages_.push_back({std::move(name), std::move(fn), 0.0});
   };
-  add("sort", [this](Real) { sort_particles(particles_, grid_, order_); });
+  add("sort", [this](Real) { sort_particles(particles_, scene_.simulation.kernel, grid_, order_); });
   add("compute_stress", [this](Real) {
     for (auto& m : materials_)
       m.material->compute_stress(slice(std::as_const(particles_.F), m),
@@ -138,18 +146,23 @@ void Simulation::build_stages() {
                                  slice(particles_.stress, m));
   });
   add("particles_to_grid",
-      [this](Real) { particles_to_grid(particles_, order_, scene_.simulation.transfer, grid_); });
+      [this](Real) {
+        const SimulationDesc& sd = scene_.simulation;
+        particles_to_grid(particles_, order_, sd.transfer, sd.kernel, grid_);
+      });
   add("grid_update", [this](Real) { grid_update(grid_); });
   add("stress_forces", [this](Real dt) { apply_stress_forces(dt, grid_); });
   if (s.gravity.squaredNorm() > 0)
     add("gravity", [this](Real dt) { apply_gravity(dt, scene_.simulation.gravity, grid_); });
+  if (s.damping > 0)
+    add("damping", [this](Real dt) { apply_damping(dt, scene_.simulation.damping, grid_); });
   // Walls act on the grid velocities of the end of the substep: place them at time + dt.
   if (!walls_.empty())
     add("walls", [this](Real dt) { wall_work_ += apply_walls(walls_, time_ + dt, grid_); });
   add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
   add("grid_to_particles", [this](Real) {
-    grid_to_particles(grid_, scene_.simulation.transfer, scene_.simulation.flip_blend,
-                      particles_);
+    const SimulationDesc& sd = scene_.simulation;
+    grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, particles_);
   });
   add("update_F", [this](Real dt) { update_deformation(dt, particles_); });
   const bool plastic = std::any_of(materials_.begin(), materials_.end(),

@@ -9,16 +9,13 @@ namespace mpm {
 
 namespace {
 
-Vec3i stencil_base(const Vec3& x, const Grid& g) {
-  Vec3i b;
-  for (int a = 0; a < 3; ++a)
-    b[a] = static_cast<int>(std::floor((x[a] - g.origin[a]) * g.inv_h[a] - Real(0.5)));
-  return b;
-}
+/// Slab width (cells along x) so that slabs two apart never write the same node: a particle
+/// whose stencil base lies in slab s writes nodes up to W (s + 1) - 1 + (N - 1) < W (s + 2).
+int slab_width(Kernel k) { return std::max(2, kernel_nodes(k) - 1); }
 
 }  // namespace
 
-void sort_particles(const Particles& p, Grid& grid, ParticleOrder& ord) {
+void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& ord) {
   const std::size_t n = p.size();
   ord.order.resize(n);
   if (n == 0) {
@@ -26,36 +23,40 @@ void sort_particles(const Particles& p, Grid& grid, ParticleOrder& ord) {
     ord.slab_start.assign(1, 0);
     return;
   }
-  // Bounds of the stencil bases: the active nodes are [lo, hi + 2].
+  const auto base = [&](std::size_t i) {
+    return dispatch_kernel(kernel, [&]<Kernel K>() {
+      return stencil_base<K>(p.x[i], grid.origin, grid.inv_h);
+    });
+  };
+  // Bounds of the stencil bases: the active nodes are [lo, hi + N - 1].
   Vec3i lo = Vec3i::Constant(1 << 30), hi = Vec3i::Constant(-(1 << 30));
   for (std::size_t i = 0; i < n; ++i) {
-    const Vec3i b = stencil_base(p.x[i], grid);
+    const Vec3i b = base(i);
     lo = lo.cwiseMin(b);
     hi = hi.cwiseMax(b);
   }
   const Vec3i ext = hi - lo + Vec3i::Ones();
   grid.active.lo = lo;
-  grid.active.hi = hi + Vec3i::Constant(2);
+  grid.active.hi = hi + Vec3i::Constant(kernel_nodes(kernel) - 1);
 
   // Counting sort by base cell inside the active box (x slowest).
   const std::size_t cells = static_cast<std::size_t>(ext.x()) * ext.y() * ext.z();
   ord.counts.assign(cells + 1, 0);
-  auto key = [&](std::size_t i) {
-    const Vec3i b = stencil_base(p.x[i], grid) - lo;
-    return (static_cast<std::size_t>(b.x()) * ext.y() + b.y()) * ext.z() + b.z();
-  };
   std::vector<std::uint32_t>& keys = ord.keys;  // reused: no allocation per substep
   keys.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    keys[i] = static_cast<std::uint32_t>(key(i));
+    const Vec3i b = base(i) - lo;
+    keys[i] = static_cast<std::uint32_t>((static_cast<std::size_t>(b.x()) * ext.y() + b.y()) *
+                                             ext.z() + b.z());
     ++ord.counts[keys[i] + 1];
   }
   for (std::size_t c = 1; c <= cells; ++c) ord.counts[c] += ord.counts[c - 1];
-  const int slabs = (ext.x() + ParticleOrder::kSlabWidth - 1) / ParticleOrder::kSlabWidth;
+  const int width = slab_width(kernel);
+  const int slabs = (ext.x() + width - 1) / width;
   ord.slab_start.resize(slabs + 1);
   const std::size_t plane = static_cast<std::size_t>(ext.y()) * ext.z();
   for (int s = 0; s <= slabs; ++s) {
-    const std::size_t x = std::min<std::size_t>(s * ParticleOrder::kSlabWidth, ext.x());
+    const std::size_t x = std::min<std::size_t>(static_cast<std::size_t>(s) * width, ext.x());
     ord.slab_start[s] = ord.counts[x * plane];
   }
   for (std::size_t i = 0; i < n; ++i) ord.order[ord.counts[keys[i]]++] = static_cast<std::uint32_t>(i);
@@ -63,18 +64,19 @@ void sort_particles(const Particles& p, Grid& grid, ParticleOrder& ord) {
 
 namespace {
 
-template <bool kApic>
+template <Kernel K, bool kApic>
 void scatter_particle(const Particles& p, std::uint32_t q, Grid& g) {
-  const Stencil s = quadratic_stencil(p.x[q], g.origin, g.inv_h);
+  constexpr int N = KernelTraits<K>::kNodes;
+  const auto s = make_stencil<K>(p.x[q], g.origin, g.inv_h);
   const Real m = p.mass[q];
   const Vec3 mv = m * p.v[q];
   Mat3 mC = Mat3::Zero();
   if constexpr (kApic) mC = m * p.C[q];
   const Mat3& S = p.stress[q];
   const Vec3 corner = g.position(s.base.x(), s.base.y(), s.base.z()) - p.x[q];
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j)
-      for (int k = 0; k < 3; ++k) {
+  for (int i = 0; i < N; ++i)
+    for (int j = 0; j < N; ++j)
+      for (int k = 0; k < N; ++k) {
         const std::size_t idx = g.index(s.base.x() + i, s.base.y() + j, s.base.z() + k);
         const Real w = s.weight(i, j, k);
         g.mass[idx] += w * m;
@@ -88,78 +90,87 @@ void scatter_particle(const Particles& p, std::uint32_t q, Grid& g) {
       }
 }
 
-template <bool kApic>
+template <Kernel K, bool kApic>
 void scatter_all(const Particles& p, const ParticleOrder& ord, Grid& g) {
   const int slabs = static_cast<int>(ord.slab_start.size()) - 1;
   for (int color = 0; color < 2; ++color) {
 #pragma omp parallel for schedule(dynamic, 1) if (ord.order.size() >= kParallelMinItems)
     for (int s = color; s < slabs; s += 2)
       for (std::size_t q = ord.slab_start[s]; q < ord.slab_start[s + 1]; ++q)
-        scatter_particle<kApic>(p, ord.order[q], g);
+        scatter_particle<K, kApic>(p, ord.order[q], g);
   }
 }
 
 }  // namespace
 
 void particles_to_grid(const Particles& p, const ParticleOrder& ord, Transfer transfer,
-                       Grid& g) {
+                       Kernel kernel, Grid& g) {
   for_each_active_node(g, [&](int, int, int, std::size_t idx) {
     g.mass[idx] = 0;
     g.velocity[idx].setZero();
     g.force[idx].setZero();
   });
-  if (transfer == Transfer::apic) scatter_all<true>(p, ord, g);
-  else scatter_all<false>(p, ord, g);
+  dispatch_kernel(kernel, [&]<Kernel K>() {
+    if (transfer == Transfer::apic) scatter_all<K, true>(p, ord, g);
+    else scatter_all<K, false>(p, ord, g);
+  });
 }
 
 namespace {
 
-template <Transfer kTransfer>
+template <Kernel K, Transfer kTransfer>
 void gather_all(const Grid& g, Real flip_blend, Particles& p) {
+  constexpr int N = KernelTraits<K>::kNodes;
+  constexpr int kStencil = N * N * N;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
-  // D^-1 = 4 / h^2 per axis for quadratic B-splines (Jiang et al. 2015, section 5.3).
-  const Vec3 inv_D = 4 * g.inv_h.cwiseProduct(g.inv_h);
-  // Columns of K per node: w, grad w (3), w (x_i - x_p) (3). The sums over the 27 nodes are
+  const Vec3 inv_D = KernelTraits<K>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
+  // Columns of K per node: w, grad w (3), w (x_i - x_p) (3). The sums over the stencil are
   // then one small matrix product, which keeps the accumulators in registers.
-  using NodeVel = Eigen::Matrix<Real, 3, 27>;
-  using NodeKernel = Eigen::Matrix<Real, 27, 7>;
+  using NodeVel = Eigen::Matrix<Real, 3, kStencil>;
+  using NodeKernel = Eigen::Matrix<Real, kStencil, 7>;
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (std::ptrdiff_t q = 0; q < n; ++q) {
-    const Stencil s = quadratic_stencil(p.x[q], g.origin, g.inv_h);
+    const auto s = make_stencil<K>(p.x[q], g.origin, g.inv_h);
     const Vec3 corner = g.position(s.base.x(), s.base.y(), s.base.z()) - p.x[q];
     NodeVel vel, dvel;
-    NodeKernel K;
+    NodeKernel W;
     int c = 0;
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j)
-        for (int k = 0; k < 3; ++k, ++c) {
+    for (int i = 0; i < N; ++i)
+      for (int j = 0; j < N; ++j)
+        for (int k = 0; k < N; ++k, ++c) {
           const std::size_t idx = g.index(s.base.x() + i, s.base.y() + j, s.base.z() + k);
           const Real w = s.weight(i, j, k);
           vel.col(c) = g.velocity[idx];
           if constexpr (kTransfer == Transfer::flip) dvel.col(c) = g.velocity[idx] - g.velocity_old[idx];
-          K(c, 0) = w;
-          K.block<1, 3>(c, 1) = s.gradient(i, j, k).transpose();
-          K.block<1, 3>(c, 4) = w * (corner + Vec3(i, j, k).cwiseProduct(g.h)).transpose();
+          W(c, 0) = w;
+          W.template block<1, 3>(c, 1) = s.gradient(i, j, k).transpose();
+          W.template block<1, 3>(c, 4) = w * (corner + Vec3(i, j, k).cwiseProduct(g.h)).transpose();
         }
-    const Eigen::Matrix<Real, 3, 7> sums = vel.lazyProduct(K);
+    const Eigen::Matrix<Real, 3, 7> sums = vel.lazyProduct(W);
     const Vec3 v = sums.col(0);
     if constexpr (kTransfer == Transfer::flip)
-      p.v[q] = flip_blend * (p.v[q] + dvel * K.col(0)) + (1 - flip_blend) * v;
+      p.v[q] = flip_blend * (p.v[q] + dvel * W.col(0)) + (1 - flip_blend) * v;
     else
       p.v[q] = v;
-    if constexpr (kTransfer == Transfer::apic) p.C[q] = sums.rightCols<3>() * inv_D.asDiagonal();
-    p.grad_v[q] = sums.middleCols<3>(1);
+    p.grad_v[q] = sums.template middleCols<3>(1);
+    if constexpr (kTransfer == Transfer::apic) {
+      if constexpr (K == Kernel::linear) p.C[q] = p.grad_v[q];
+      else p.C[q] = sums.template rightCols<3>() * inv_D.asDiagonal();
+    }
   }
 }
 
 }  // namespace
 
-void grid_to_particles(const Grid& g, Transfer transfer, Real flip_blend, Particles& p) {
-  switch (transfer) {
-    case Transfer::apic: gather_all<Transfer::apic>(g, flip_blend, p); break;
-    case Transfer::pic: gather_all<Transfer::pic>(g, flip_blend, p); break;
-    case Transfer::flip: gather_all<Transfer::flip>(g, flip_blend, p); break;
-  }
+void grid_to_particles(const Grid& g, Transfer transfer, Kernel kernel, Real flip_blend,
+                       Particles& p) {
+  dispatch_kernel(kernel, [&]<Kernel K>() {
+    switch (transfer) {
+      case Transfer::apic: gather_all<K, Transfer::apic>(g, flip_blend, p); break;
+      case Transfer::pic: gather_all<K, Transfer::pic>(g, flip_blend, p); break;
+      case Transfer::flip: gather_all<K, Transfer::flip>(g, flip_blend, p); break;
+    }
+  });
 }
 
 void update_deformation(Real dt, Particles& p) {

@@ -12,29 +12,31 @@ namespace mpm {
 
 /// Particles ordered by the grid cell of their stencil, with slabs for race-free scatter.
 ///
-/// Slabs are kSlabWidth cells thick along x. A particle in slab s writes only nodes of slabs
-/// s and s + 1, so all even slabs can scatter at once, then all odd ones, with no atomics.
-/// The slab width does not depend on the thread count, so sums are the same for any count.
+/// Slabs are a few cells thick along x. A particle in slab s writes only nodes of slabs s and
+/// s + 1, so all even slabs can scatter at once, then all odd ones, with no atomics. The slab
+/// width depends on the kernel only, not the thread count, so sums are the same for any count.
 struct ParticleOrder {
-  static constexpr int kSlabWidth = 2;  ///< Cells per slab along x.
   std::vector<std::uint32_t> order;     ///< Particle indices sorted by stencil base cell.
   std::vector<std::size_t> slab_start;  ///< order[slab_start[s] .. slab_start[s+1]) is slab s.
   std::vector<std::uint32_t> counts;    ///< Scratch for the counting sort.
   std::vector<std::uint32_t> keys;      ///< Scratch: each particle's cell key, kept between substeps.
 };
 
-/// Sorts particles by stencil cell and sets grid.active to the nodes they touch.
-void sort_particles(const Particles& p, Grid& grid, ParticleOrder& order);
+/// Sorts particles by the base cell of `kernel`'s stencil and sets grid.active to the nodes
+/// they touch. Slabs are wide enough for the kernel (2 cells, 3 for cubic).
+void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& order);
 
 /// Clears the active nodes, then scatters mass, momentum (with the APIC affine term
 /// m C (x_i - x_p), Jiang et al. 2015 eq. 11) and the stress force
 /// f_i = -sum_p V0 tau_p grad w_ip (Jiang et al. 2016 course notes, eq. 189) to the grid.
 void particles_to_grid(const Particles& p, const ParticleOrder& order, Transfer transfer,
-                       Grid& grid);
+                       Kernel kernel, Grid& grid);
 
-/// Gathers velocity (PIC, FLIP blend, or APIC with C = B D^-1, D = h^2 / 4, Jiang et al. 2015
-/// eq. 8-10) and the velocity gradient sum_i v_i grad w_ip^T into the particles.
-void grid_to_particles(const Grid& grid, Transfer transfer, Real flip_blend, Particles& p);
+/// Gathers velocity (PIC, FLIP blend, or APIC with C = B D^-1, D = h^2 / 4 quadratic, h^2 / 3
+/// cubic, Jiang et al. 2015 eq. 8-10) and the velocity gradient sum_i v_i grad w_ip^T into the
+/// particles. For the linear kernel APIC takes C = that gradient (Jiang et al. 2015, 5.3).
+void grid_to_particles(const Grid& grid, Transfer transfer, Kernel kernel, Real flip_blend,
+                       Particles& p);
 
 /// F <- (I + dt grad v) F (Stomakhin et al. 2013, eq. 7 with the elastic part only).
 void update_deformation(Real dt, Particles& p);

@@ -61,15 +61,18 @@ GridTotals grid_totals_of_momentum(const Grid& g) {
   return t;
 }
 
+const Kernel kAllKernels[] = {Kernel::linear, Kernel::quadratic, Kernel::cubic};
+
 }  // namespace
 
 TEST_CASE("P2G keeps mass and linear momentum to round-off", "[transfers]") {
+  for (Kernel kernel : kAllKernels)
   for (Transfer tr : {Transfer::apic, Transfer::pic}) {
     Particles p = random_cloud(2000, tr == Transfer::apic, 1);
     Grid g(unit_grid(16), false);
     ParticleOrder ord;
-    sort_particles(p, g, ord);
-    particles_to_grid(p, ord, tr, g);
+    sort_particles(p, kernel, g, ord);
+    particles_to_grid(p, ord, tr, kernel, g);
     const GridTotals t = grid_totals_of_momentum(g);
     double mass = 0;
     Vec3 mom = Vec3::Zero();
@@ -80,50 +83,56 @@ TEST_CASE("P2G keeps mass and linear momentum to round-off", "[transfers]") {
 }
 
 TEST_CASE("P2G then G2P keeps linear momentum", "[transfers]") {
+  for (Kernel kernel : kAllKernels)
   for (Transfer tr : {Transfer::apic, Transfer::pic}) {
     Particles p = random_cloud(2000, tr == Transfer::apic, 2);
     Grid g(unit_grid(16), false);
     ParticleOrder ord;
-    sort_particles(p, g, ord);
-    particles_to_grid(p, ord, tr, g);
+    sort_particles(p, kernel, g, ord);
+    particles_to_grid(p, ord, tr, kernel, g);
     const Vec3 grid_mom = grid_totals_of_momentum(g).momentum;
     grid_update(g);
-    grid_to_particles(g, tr, 0, p);
+    grid_to_particles(g, tr, kernel, 0, p);
     Vec3 mom = Vec3::Zero();
     for (std::size_t q = 0; q < p.size(); ++q) mom += p.mass[q] * p.v[q];
     CHECK((mom - grid_mom).norm() < 1e-12 * grid_mom.norm() + 1e-12);
   }
 }
 
-TEST_CASE("APIC round trip keeps angular momentum; PIC does not", "[transfers]") {
+TEST_CASE("APIC round trip keeps angular momentum, PIC does not", "[transfers]") {
   // Jiang et al. 2015, section 5.3: with APIC, G2P then P2G leaves the grid's angular
   // momentum sum_i x_i x m_i v_i unchanged. PIC drops the particles' spin.
-  auto drift = [](Transfer tr) {
+  auto drift = [](Transfer tr, Kernel kernel) {
     Particles p = random_cloud(3000, tr == Transfer::apic, 3);
     Grid g(unit_grid(16), false);
     ParticleOrder ord;
-    sort_particles(p, g, ord);
-    particles_to_grid(p, ord, tr, g);
+    sort_particles(p, kernel, g, ord);
+    particles_to_grid(p, ord, tr, kernel, g);
     const Vec3 before = grid_totals_of_momentum(g).angular;
     grid_update(g);
-    grid_to_particles(g, tr, 0, p);
-    particles_to_grid(p, ord, tr, g);
+    grid_to_particles(g, tr, kernel, 0, p);
+    particles_to_grid(p, ord, tr, kernel, g);
     const Vec3 after = grid_totals_of_momentum(g).angular;
     return (after - before).norm() / before.norm();
   };
-  CHECK(drift(Transfer::apic) < 1e-12);
-  CHECK(drift(Transfer::pic) > 1e-3);
+  for (Kernel kernel : kAllKernels) {
+    INFO("kernel " << static_cast<int>(kernel));
+    CHECK(drift(Transfer::apic, kernel) < 1e-12);
+    CHECK(drift(Transfer::pic, kernel) > 1e-3);
+  }
 }
 
 TEST_CASE("P2G gives the same grid for 1 and 2 threads", "[transfers]") {
-  Particles p = random_cloud(5000, true, 4);
+  // 20000 particles: above kParallelMinItems, so two threads really scatter at once.
+  Particles p = random_cloud(20000, true, 4);
   for (auto& S : p.stress) S = Mat3::Random();
+  for (Kernel kernel : kAllKernels) {
   auto scatter = [&](int threads) {
     omp_set_num_threads(threads);
     Grid g(unit_grid(16), false);
     ParticleOrder ord;
-    sort_particles(p, g, ord);
-    particles_to_grid(p, ord, Transfer::apic, g);
+    sort_particles(p, kernel, g, ord);
+    particles_to_grid(p, ord, Transfer::apic, kernel, g);
     return g;
   };
   const Grid a = scatter(1), b = scatter(2);
@@ -131,4 +140,5 @@ TEST_CASE("P2G gives the same grid for 1 and 2 threads", "[transfers]") {
   CHECK(a.mass == b.mass);
   CHECK(a.velocity == b.velocity);
   CHECK(a.force == b.force);
+  }
 }
