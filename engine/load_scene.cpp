@@ -155,6 +155,14 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
   if (o.density) r.check_range("density", *o.density, 0, 1e300, true);
   o.particles_per_cell = r.get_or("particles_per_cell", o.particles_per_cell);
   r.check_range("particles_per_cell", o.particles_per_cell, 1, 1000);
+  const std::string sampling = r.get_or<std::string>("sampling", "jittered");
+  if (sampling == "regular") o.sampling = Sampling::regular;
+  else if (sampling != "jittered")
+    r.fail("sampling", "unknown sampling '" + sampling + "'; expected jittered or regular");
+  const int strata = static_cast<int>(std::lround(std::cbrt(o.particles_per_cell)));
+  if (o.sampling == Sampling::regular && strata * strata * strata != o.particles_per_cell)
+    r.fail("sampling", "regular sampling needs particles_per_cell to be a cube (1, 8, 27, ...), not " +
+                           std::to_string(o.particles_per_cell));
   o.material = r.require<std::string>("material");
   const MaterialInfo* info = registry.find(o.material);
   if (!info)

@@ -20,7 +20,7 @@ double hash_uniform(std::uint64_t key) {
   return static_cast<double>(mix(key) >> 11) * 0x1.0p-53;
 }
 
-std::vector<Vec3> sample_inside(const TriangleMesh& mesh, const GridDesc& gd, int per_cell,
+std::vector<Vec3> sample_inside(const TriangleMesh& mesh, const GridDesc& gd, int per_cell, bool regular,
                                 std::uint64_t seed, std::uint64_t stream) {
   const InsideTester tester(mesh);
   const Vec3 h = gd.spacing();
@@ -51,7 +51,7 @@ std::vector<Vec3> sample_inside(const TriangleMesh& mesh, const GridDesc& gd, in
           Vec3 u(hash_uniform(key), hash_uniform(key + 1), hash_uniform(key + 2));
           if (stratified) {
             const Vec3 sub(s / (strata * strata), (s / strata) % strata, s % strata);
-            u = (sub + u) / strata;
+            u = (sub + (regular ? Vec3::Constant(0.5) : u)) / strata;
           }
           const Vec3 x = corner + u.cwiseProduct(h);
           if (tester.inside(x)) out.push_back(x);

@@ -38,6 +38,12 @@ struct SimulationDesc {
   std::uint64_t seed = 1;             ///< Seed for particle sampling.
 };
 
+/// Where particles go inside each grid cell.
+enum class Sampling {
+  jittered,  ///< One random point per sub-cell of an n^3 split (random in the cell otherwise).
+  regular,   ///< The sub-cell centres: a lattice (particles_per_cell must be a cube).
+};
+
 /// A regular background grid.
 struct GridDesc {
   Vec3 origin{0, 0, 0};  ///< Minimum corner, m.
@@ -63,6 +69,7 @@ struct ObjectDesc {
   std::optional<double> mass;      ///< Total mass, kg (or density).
   std::optional<double> density;   ///< kg/m^3 (or mass).
   int particles_per_cell = 8;      ///< Particles per grid cell.
+  Sampling sampling = Sampling::jittered;  ///< Placement inside each cell.
   std::string material;            ///< Name in the material registry.
   ParamValues params;              ///< The material's parameters, validated.
   FileLoc loc;                     ///< Where the object starts in the scene file.

@@ -88,7 +88,8 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
                        " particles per cell");
     }
     const std::vector<Vec3> points =
-        sample_inside(mesh, scene.grid, od.particles_per_cell, scene.simulation.seed, o);
+        sample_inside(mesh, scene.grid, od.particles_per_cell,
+                      od.sampling == Sampling::regular, scene.simulation.seed, o);
     if (points.empty())
       throw SceneError(od.loc, key, "object '" + od.name + "' samples zero particles");
     for (const Vec3& x : points)

@@ -33,6 +33,7 @@ std::vector<Setting> over_refine(std::vector<int> levels, Setting base = {}) {
   return out;
 }
 
+/// Every kernel over `levels` on the scene's (regular) lattice, then quadratic jittered.
 std::vector<Setting> over_kernels_and_refine(std::vector<int> levels) {
   std::vector<Setting> out;
   for (const char* k : {"linear", "quadratic", "cubic"})
@@ -40,6 +41,10 @@ std::vector<Setting> over_kernels_and_refine(std::vector<int> levels) {
       s.kernel = k;
       out.push_back(s);
     }
+  for (Setting s : over_refine(levels)) {
+    s.sampling = "jittered";
+    out.push_back(s);
+  }
   return out;
 }
 
@@ -65,6 +70,19 @@ std::vector<Setting> over(std::vector<T> values, Setting base, Fn set) {
   return out;
 }
 
+/// 1, 8 and 27 particles per cell, each on a lattice and jittered.
+std::vector<Setting> ppc_sweep(Setting base) {
+  std::vector<Setting> out;
+  for (int n : {1, 8, 27})
+    for (const char* sampling : {"regular", "jittered"}) {
+      Setting s = base;
+      s.ppc = n;
+      s.sampling = sampling;
+      out.push_back(s);
+    }
+  return out;
+}
+
 const std::vector<Experiment>& experiments() {
   static const std::vector<Experiment> all = [] {
     Setting bar4;
@@ -73,15 +91,13 @@ const std::vector<Experiment>& experiments() {
     bar2.refine = 2;
     Setting short_bar = bar2;
     short_bar.frames = 12;  // three periods
-    const auto set_ppc = [](Setting& s, int n) { s.ppc = n; };
     const auto set_cfl = [](Setting& s, double c) { s.cfl = c; };
     const auto set_dt = [](Setting& s, double dt) { s.dt = dt; };
     std::vector<Setting> quick_h = over_refine({1, 2, 4});
     for (Setting& s : quick_h) s.frames = 12;
     return std::vector<Experiment>{
         {"h_convergence", "bar_vibration", over_kernels_and_refine({1, 2, 4, 8}), quick_h},
-        {"ppc", "bar_vibration", over<int>({1, 8, 27}, bar4, set_ppc),
-         over<int>({1, 8}, short_bar, set_ppc)},
+        {"ppc", "bar_vibration", ppc_sweep(bar4), ppc_sweep(short_bar)},
         {"cfl", "bar_vibration", over<double>({0.1, 0.2, 0.4, 0.8}, bar4, set_cfl),
          over<double>({0.2, 0.8}, short_bar, set_cfl)},
         {"transfer_bar", "bar_vibration", over_transfers(bar4), {}},
@@ -108,9 +124,11 @@ std::vector<SceneOverride> overrides_for(const Setting& s, const SceneDesc& scen
   const Vec3i d = scene.grid.dims * s.refine;
   o.push_back({"grid.dims", "[" + std::to_string(d.x()) + ", " + std::to_string(d.y()) + ", " +
                                 std::to_string(d.z()) + "]"});
-  if (s.ppc)
-    for (std::size_t i = 0; i < scene.objects.size(); ++i)
-      o.push_back({"objects[" + std::to_string(i) + "].particles_per_cell", std::to_string(*s.ppc)});
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    const std::string obj = "objects[" + std::to_string(i) + "].";
+    if (s.ppc) o.push_back({obj + "particles_per_cell", std::to_string(*s.ppc)});
+    if (s.sampling) o.push_back({obj + "sampling", *s.sampling});
+  }
   if (s.cfl) o.push_back({"simulation.cfl", text(*s.cfl)});
   if (s.dt) {
     o.push_back({"simulation.dt", text(*s.dt)});
@@ -209,6 +227,7 @@ std::vector<StudyRow> run_study(const StudyOptions& opt,
       row.setting = s;
       row.h = scene.grid.spacing().minCoeff();
       row.ppc = scene.objects.at(0).particles_per_cell;
+      row.sampling = scene.objects.at(0).sampling == Sampling::regular ? "regular" : "jittered";
       row.transfer = transfer_name(scene.simulation.transfer);
       if (scene.simulation.transfer == Transfer::flip) row.transfer += text(scene.simulation.flip_blend);
       row.kernel = kernel_name(scene.simulation.kernel);
@@ -227,7 +246,7 @@ std::vector<StudyRow> run_study(const StudyOptions& opt,
 
 std::string setting_label(const StudyRow& r) {
   std::ostringstream s;
-  s << r.kernel << " h=" << r.h << " ppc=" << r.ppc;
+  s << r.kernel << " h=" << r.h << " ppc=" << r.ppc << (r.sampling == "regular" ? "r" : "j");
   if (r.cfl > 0) s << " cfl=" << r.cfl;
   else s << " dt=" << r.dt;
   s << ' ' << r.transfer;
@@ -237,13 +256,13 @@ std::string setting_label(const StudyRow& r) {
 std::string study_csv(const std::vector<StudyRow>& rows) {
   std::ostringstream s;
   s.precision(9);
-  s << "experiment,case,kernel,h,ppc,cfl,dt,transfer,status,error_name,error,particles,substeps,"
+  s << "experiment,case,kernel,h,ppc,sampling,cfl,dt,transfer,status,error_name,error,particles,substeps,"
        "particle_steps,wall_seconds,particle_steps_per_second,peak_rss_mb,measures\n";
   for (const StudyRow& r : rows) {
     const Outcome& o = r.outcome;
     const double steps = static_cast<double>(o.particles) * o.substeps;
     s << r.experiment << ',' << r.case_name << ',' << r.kernel << ',' << r.h << ',' << r.ppc << ','
-      << r.cfl << ',' << r.dt << ',' << r.transfer << ',' << o.status << ",\"" << o.error_name
+      << r.sampling << ',' << r.cfl << ',' << r.dt << ',' << r.transfer << ',' << o.status << ",\"" << o.error_name
       << "\"," << o.error << ',' << o.particles << ',' << o.substeps << ',' << steps << ','
       << o.seconds << ',' << (o.seconds > 0 ? steps / o.seconds : 0) << ','
       << r.peak_rss_bytes / 1e6 << ",\"";

@@ -15,6 +15,7 @@ namespace mpm::validation {
 struct Setting {
   int refine = 1;                     ///< Grid cells per axis = the scene's times this.
   std::optional<int> ppc;             ///< particles_per_cell of every object.
+  std::optional<std::string> sampling;///< jittered or regular, every object.
   std::optional<double> cfl;          ///< simulation.cfl.
   std::optional<double> dt;           ///< simulation.dt, fixed (removes cfl).
   std::optional<std::string> transfer;///< apic, pic or flip.
@@ -30,6 +31,7 @@ struct StudyRow {
   Setting setting;         ///< The settings.
   double h = 0;            ///< Grid spacing, m.
   int ppc = 0;             ///< Particles per cell of the first object.
+  std::string sampling;    ///< jittered or regular (first object).
   std::string transfer;    ///< Transfer scheme (with the FLIP fraction, e.g. "flip0.99").
   std::string kernel;      ///< Kernel name.
   double cfl = 0;          ///< CFL number (0 when dt is fixed).

@@ -64,7 +64,7 @@ TEST_CASE("inside test: bunny sampling fills its volume", "[scene]") {
   GridDesc g;
   g.dims = Vec3i::Constant(80);
   const int ppc = 8;
-  const auto pts = sample_inside(m, g, ppc, 1, 0);
+  const auto pts = sample_inside(m, g, ppc, false, 1, 0);
   const double sampled = pts.size() * g.spacing().prod() / ppc;
   // Sampling error: a relative deviation of about (boundary cells / inside cells) / sqrt(ppc).
   CHECK(sampled == Approx(mesh_volume(m)).epsilon(0.02));
@@ -75,8 +75,8 @@ TEST_CASE("sampling is deterministic for a seed and differs between seeds", "[sc
   transform_mesh(m, Vec3::Constant(0.2), Vec3(0, 30, 0), Vec3(0.5, 0.5, 0.5));
   GridDesc g;
   g.dims = Vec3i::Constant(40);
-  const auto a = sample_inside(m, g, 8, 1, 0), b = sample_inside(m, g, 8, 1, 0);
-  const auto c = sample_inside(m, g, 8, 2, 0);
+  const auto a = sample_inside(m, g, 8, false, 1, 0), b = sample_inside(m, g, 8, false, 1, 0);
+  const auto c = sample_inside(m, g, 8, false, 2, 0);
   CHECK(a == b);
   CHECK(a != c);
   CHECK(static_cast<double>(a.size()) == Approx(0.008 / g.spacing().prod() * 8).epsilon(0.03));
