@@ -56,8 +56,8 @@ class Observer {
   virtual void on_finish(const Simulation& sim, const RunResult& result) {}
 };
 
-/// Total energy may not exceed its start by more than this fraction (plus round-off) when
-/// nothing does work on the bodies: explicit MPM only dissipates when it is stable.
+/// Total energy less wall work may not exceed its start by more than this fraction of the
+/// larger of the start energy and the wall work: explicit MPM only dissipates when stable.
 inline constexpr Real kEnergyGrowthLimit = 0.5;
 
 /// Runs frames first_frame..frames, frame f ending at time f * frame_dt (the state is at frame

@@ -234,7 +234,10 @@ std::vector<StudyRow> run_study(const StudyOptions& opt,
       row.cfl = scene.simulation.cfl.value_or(0);
       row.dt = scene.simulation.dt.value_or(0);
       const std::string out = run_in_child(
-          [&] { return serialize(run_case(c, o), peak_rss_bytes()); },
+          [&] {
+            const Outcome outcome = run_case(c, o);
+            return serialize(outcome, peak_rss_bytes());  // after the run: its peak
+          },
           "study run " + e.name + " (" + setting_label(row) + ")");
       row.outcome = deserialize(out, row.peak_rss_bytes);
       if (progress) progress(row);

@@ -1,0 +1,45 @@
+// The quick study (`mpm study --quick`): the conclusions that must hold, from its own rows.
+#include <catch2/catch.hpp>
+
+#include "engine/validation/study.h"
+
+using namespace mpm::validation;
+
+TEST_CASE("quick study: convergence order, angular momentum, collision momentum", "[validation]") {
+  StudyOptions opt;
+  opt.quick = true;
+  opt.experiments = {"h_convergence", "transfer_spin", "collision"};
+  const std::vector<StudyRow> rows = run_study(opt);
+
+  std::vector<double> h, error;
+  double apic = -1, pic = -1, momentum = -1;
+  for (const StudyRow& r : rows) {
+    CHECK(r.outcome.status == "ok");
+    CHECK(r.peak_rss_bytes > 0);
+    if (r.experiment == "h_convergence") h.push_back(r.h), error.push_back(r.outcome.error);
+    if (r.experiment == "transfer_spin" && r.transfer == "apic") apic = r.outcome.error;
+    if (r.experiment == "transfer_spin" && r.transfer == "pic") pic = r.outcome.error;
+    if (r.experiment == "collision") momentum = r.outcome.error;
+  }
+  REQUIRE(h.size() >= 3);
+  const double order = convergence_order(h, error);
+  INFO("bar period error " << error[0] << ", " << error[1] << ", " << error[2] << ": order "
+                           << order);
+  CHECK(order > 1);  // quadratic B-splines: second order expected (docs/accuracy.md)
+  for (std::size_t i = 1; i < error.size(); ++i) CHECK(error[i] < error[i - 1]);
+  CHECK(apic >= 0);
+  CHECK(apic < 1e-11);
+  CHECK(pic > 0.5);
+  CHECK(momentum >= 0);
+  CHECK(momentum < 1e-11);
+
+  const std::string csv = study_csv(rows);
+  CHECK(csv.find("h_convergence,bar_vibration,quadratic") != std::string::npos);
+  CHECK(series_csv(rows).find("angular momentum / initial") != std::string::npos);
+}
+
+TEST_CASE("study: an unknown sweep is refused with the list of sweeps", "[validation]") {
+  StudyOptions opt;
+  opt.experiments = {"h_convergance"};
+  CHECK_THROWS_WITH(run_study(opt), Catch::Contains("h_convergence"));
+}
