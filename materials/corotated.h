@@ -25,16 +25,16 @@ struct FixedCorotated {
 
   /// First Piola-Kirchhoff stress P = 2 mu (F - R) + lambda (J - 1) J F^-T, Pa.
   Mat3 first_piola(const Mat3& F) const {
-    const Mat3 R = polar_rotation(F);
-    const Real J = F.determinant();
+    Real J;
+    const Mat3 R = polar_rotation(F, J);
     // J F^-T is the cofactor matrix of F, defined even when F is singular.
     return 2 * mu * (F - R) + lambda * (J - 1) * cofactor(F);
   }
 
   /// Kirchhoff stress tau = P F^T = 2 mu (F - R) F^T + lambda (J - 1) J I, Pa.
   Mat3 kirchhoff(const Mat3& F) const {
-    const Mat3 R = polar_rotation(F);
-    const Real J = F.determinant();
+    Real J;
+    const Mat3 R = polar_rotation(F, J);
     return 2 * mu * (F - R) * F.transpose() + lambda * (J - 1) * J * Mat3::Identity();
   }
 

@@ -13,6 +13,11 @@
 
 namespace mpm::materials {
 
+/// True if the symmetric A is positive definite (Sylvester: its leading minors are > 0).
+inline bool positive_definite(const Mat3& A) {
+  return A(0, 0) > 0 && A(0, 0) * A(1, 1) - A(0, 1) * A(0, 1) > 0 && A.determinant() > 0;
+}
+
 /// The plastic part of the snow model: clamps the elastic singular values and tracks Jp.
 struct SnowPlasticity {
   Real critical_compression = 2.5e-2;  ///< theta_c: elastic singular values >= 1 - theta_c.
@@ -24,14 +29,25 @@ struct SnowPlasticity {
   /// Fe = U clamp(Sigma) V^T and Jp *= det(Sigma) / det(clamp(Sigma)), so det(Fe) Jp is kept
   /// (unless min_Jp clamps Jp).
   void project(Mat3& Fe, Real& Jp) const {
-    Mat3 U, V;
+    const Real lo = 1 - critical_compression, hi = 1 + critical_stretch;  // 0 < lo <= 1 <= hi
+    // The common case: all singular values inside (lo, hi), so the clamp changes nothing. That
+    // holds iff det Fe > 0 and Fe^T Fe - lo^2 I and hi^2 I - Fe^T Fe are positive definite.
+    const Mat3 C = Fe.transpose() * Fe;
+    if (Fe.determinant() > 0 && positive_definite(C - lo * lo * Mat3::Identity()) &&
+        positive_definite(hi * hi * Mat3::Identity() - C)) {
+      Jp = std::max(Jp, min_Jp);
+      return;
+    }
+    // Fe = R S with S = V Sigma V^T (Sigma signed as in svd_rv), so U = R V.
+    Mat3 R, S, V;
     Vec3 s;
-    svd_rv(Fe, U, s, V);
-    const Vec3 c = s.cwiseMax(1 - critical_compression).cwiseMin(1 + critical_stretch);
+    polar_decomposition(Fe, R, S);
+    symmetric_eigen(S, s, V);
+    const Vec3 c = s.cwiseMax(lo).cwiseMin(hi);
     // A Jp clamp (as several codes do) bounds the hardening, and so the CFL step, at the
     // price of not keeping det(Fe) Jp once it acts.
     Jp = std::max(Jp * s.prod() / c.prod(), min_Jp);
-    Fe = U * c.asDiagonal() * V.transpose();
+    Fe = R * V * c.asDiagonal() * V.transpose();
   }
 
   /// Hardening factor exp(xi (1 - Jp)) applied to mu and lambda.
