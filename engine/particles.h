@@ -19,7 +19,6 @@ struct Particles {
   std::vector<Real> volume0;           ///< Reference volume V0, m^3.
   std::vector<std::uint32_t> object;   ///< Index of the object the particle belongs to.
   std::vector<Mat3> stress;            ///< Scratch: -V0 tau, written by compute_stress.
-  std::vector<Mat3> grad_v;            ///< Scratch: velocity gradient, written by grid_to_particles.
 
   /// Number of particles.
   std::size_t size() const { return x.size(); }

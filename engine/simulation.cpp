@@ -127,7 +127,6 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
   const std::size_t n = P.size();
   if (scene.simulation.transfer == Transfer::apic) P.C = std::move(affine);
   P.stress.assign(n, Mat3::Zero());
-  P.grad_v.assign(n, Mat3::Zero());
   sim->walls_ = build_wall_planes(scene.walls);
   sim->build_stages();
   return sim;
@@ -161,11 +160,10 @@ void Simulation::build_stages() {
   if (!walls_.empty())
     add("walls", [this](Real dt) { wall_work_ += apply_walls(walls_, time_ + dt, grid_); });
   add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
-  add("grid_to_particles", [this](Real) {
+  add("grid_to_particles", [this](Real dt) {
     const SimulationDesc& sd = scene_.simulation;
-    grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, particles_);
+    grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_);
   });
-  add("update_F", [this](Real dt) { update_deformation(dt, particles_); });
   const bool plastic = std::any_of(materials_.begin(), materials_.end(),
                                    [](const auto& m) { return m.material->has_plasticity(); });
   if (plastic)

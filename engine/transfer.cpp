@@ -119,7 +119,7 @@ void particles_to_grid(const Particles& p, const ParticleOrder& ord, Transfer tr
 namespace {
 
 template <Kernel K, Transfer kTransfer>
-void gather_all(const Grid& g, Real flip_blend, Particles& p) {
+void gather_all(const Grid& g, Real flip_blend, Real dt, Particles& p) {
   constexpr int N = KernelTraits<K>::kNodes;
   constexpr int kStencil = N * N * N;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
@@ -152,32 +152,27 @@ void gather_all(const Grid& g, Real flip_blend, Particles& p) {
       p.v[q] = flip_blend * (p.v[q] + dvel * W.col(0)) + (1 - flip_blend) * v;
     else
       p.v[q] = v;
-    p.grad_v[q] = sums.template middleCols<3>(1);
+    const Mat3 grad_v = sums.template middleCols<3>(1);
     if constexpr (kTransfer == Transfer::apic) {
-      if constexpr (K == Kernel::linear) p.C[q] = p.grad_v[q];
+      if constexpr (K == Kernel::linear) p.C[q] = grad_v;
       else p.C[q] = sums.template rightCols<3>() * inv_D.asDiagonal();
     }
+    // F <- (I + dt grad v) F (Stomakhin et al. 2013, eq. 7 with the elastic part only).
+    p.F[q] = (Mat3::Identity() + dt * grad_v) * p.F[q];
   }
 }
 
 }  // namespace
 
 void grid_to_particles(const Grid& g, Transfer transfer, Kernel kernel, Real flip_blend,
-                       Particles& p) {
+                       Real dt, Particles& p) {
   dispatch_kernel(kernel, [&]<Kernel K>() {
     switch (transfer) {
-      case Transfer::apic: gather_all<K, Transfer::apic>(g, flip_blend, p); break;
-      case Transfer::pic: gather_all<K, Transfer::pic>(g, flip_blend, p); break;
-      case Transfer::flip: gather_all<K, Transfer::flip>(g, flip_blend, p); break;
+      case Transfer::apic: gather_all<K, Transfer::apic>(g, flip_blend, dt, p); break;
+      case Transfer::pic: gather_all<K, Transfer::pic>(g, flip_blend, dt, p); break;
+      case Transfer::flip: gather_all<K, Transfer::flip>(g, flip_blend, dt, p); break;
     }
   });
-}
-
-void update_deformation(Real dt, Particles& p) {
-  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
-#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-  for (std::ptrdiff_t q = 0; q < n; ++q)
-    p.F[q] = (Mat3::Identity() + dt * p.grad_v[q]) * p.F[q];
 }
 
 AdvectStats advect_particles(Real dt, const Grid& g, Particles& p) {

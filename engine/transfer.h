@@ -33,13 +33,12 @@ void particles_to_grid(const Particles& p, const ParticleOrder& order, Transfer 
                        Kernel kernel, Grid& grid);
 
 /// Gathers velocity (PIC, FLIP blend, or APIC with C = B D^-1, D = h^2 / 4 quadratic, h^2 / 3
-/// cubic, Jiang et al. 2015 eq. 8-10) and the velocity gradient sum_i v_i grad w_ip^T into the
-/// particles. For the linear kernel APIC takes C = that gradient (Jiang et al. 2015, 5.3).
+/// cubic, Jiang et al. 2015 eq. 8-10) into the particles, and updates F <- (I + dt grad v) F
+/// with grad v = sum_i v_i grad w_ip^T (Stomakhin et al. 2013, eq. 7, elastic part), fused so
+/// the gradient is never stored. For the linear kernel APIC takes C = grad v (Jiang et al.
+/// 2015, section 5.3).
 void grid_to_particles(const Grid& grid, Transfer transfer, Kernel kernel, Real flip_blend,
-                       Particles& p);
-
-/// F <- (I + dt grad v) F (Stomakhin et al. 2013, eq. 7 with the elastic part only).
-void update_deformation(Real dt, Particles& p);
+                       Real dt, Particles& p);
 
 /// What advection saw.
 struct AdvectStats {

@@ -17,7 +17,7 @@ struct Setting {
   std::optional<int> ppc;             ///< particles_per_cell of every object.
   std::optional<std::string> sampling;///< jittered or regular, every object.
   std::optional<double> cfl;          ///< simulation.cfl.
-  std::optional<double> dt;           ///< simulation.dt, fixed (removes cfl).
+  std::optional<double> dt;           ///< simulation.dt: the substep, or its cap with cfl.
   std::optional<std::string> transfer;///< apic, pic or flip.
   std::optional<double> flip_blend;   ///< FLIP fraction.
   std::optional<std::string> kernel;  ///< linear, quadratic or cubic.

@@ -94,6 +94,12 @@ TEST_CASE("malformed scenes exit with code 2 and say where and what", "[scene]")
       {"plane and box", "    boundary: slip", "    box: {min: [0, 0, 0], max: [1, 1, 1]}\n    boundary: slip", {"exactly one of 'plane' or 'box'"}},
       {"unknown boundary", "boundary: slip", "boundary: sticy", {"walls[0].boundary", "sticky, slip or separate"}},
       {"unknown transfer", "dt: 1.0e-3", "dt: 1.0e-3\n  transfer: mls", {"simulation.transfer", "apic, pic or flip"}},
+      {"unknown kernel", "dt: 1.0e-3", "dt: 1.0e-3\n  kernel: quintic", {"simulation.kernel", "linear, quadratic or cubic"}},
+      {"negative damping", "dt: 1.0e-3", "dt: 1.0e-3\n  damping: -1", {"simulation.damping", "out of range"}},
+      {"unknown sampling", "    mass: 1", "    mass: 1\n    sampling: grid", {"objects[0].sampling", "jittered or regular"}},
+      {"regular sampling of a non-cube count", "    mass: 1", "    mass: 1\n    particles_per_cell: 6\n    sampling: regular", {"objects[0].sampling", "cube", "not 6"}},
+      {"velocity_gradient not 3x3", "    mass: 1", "    mass: 1\n    velocity_gradient: [1, 0, 0]", {"objects[0].velocity_gradient", "three rows of three"}},
+      {"angular_velocity not a vector", "    mass: 1", "    mass: 1\n    angular_velocity: 4", {"objects[0].angular_velocity", "list of three"}},
       {"unknown material", "material: corotated", "material: jelly", {"unknown material 'jelly'", "corotated", "neo_hookean", "snow"}},
       {"material key of another material", "    E: 1.0e4", "    E: 1.0e4\n    hardening: 3", {"objects[0].hardening", "unknown key"}},
       {"missing mesh", "mesh: MESH", "mesh: nowhere.obj", {"bad.yaml:9:11", "objects[0].mesh", "does not exist"}},
@@ -154,6 +160,8 @@ TEST_CASE("bad command lines and overrides exit with code 2", "[scene]") {
       {"validate " + scene + " --set simulation.frams=3", {"did you mean 'frames'"}},
       {"validate /nonexistent/scene.yaml", {"/nonexistent/scene.yaml", "no such file"}},
       {"run " + scene + " --out /proc/forbidden", {"--out", "cannot create output folder"}},
+      {"study --quick", {"'mpm study' needs -o DIR"}},
+      {"study --cases h_convergance -o " + (dir / "study").string(), {"unknown study sweep", "h_convergence"}},
   };
   for (const Cli& c : cases) {
     INFO("mpm " << c.args);
