@@ -63,7 +63,7 @@ def error_vs_time(rows, out):
             label="Pareto front")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("wall time of the run, s (2 threads)")
+    ax.set_xlabel("wall time of the substeps, s (2 threads above 8192 particles, else 1)")
     ax.set_ylabel("first-mode period relative error")
     ax.set_title("Free-free bar, ten periods: error against time")
     ax.grid(True, which="both", alpha=0.3)
