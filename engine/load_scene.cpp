@@ -4,6 +4,7 @@
 #include <cstdlib>
 #include <algorithm>
 #include <fstream>
+#include <initializer_list>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -14,6 +15,22 @@
 namespace mpm {
 
 namespace {
+
+/// Reads `key` as one of the named `choices` (the first is the default), or fails with the list.
+template <class E>
+E read_choice(ParamReader& r, const std::string& key,
+              std::initializer_list<std::pair<const char*, E>> choices) {
+  const std::string value = r.get_or<std::string>(key, choices.begin()->first);
+  std::string names;
+  std::size_t i = 0;
+  for (const auto& [name, e] : choices) {
+    if (value == name) return e;
+    if (i > 0) names += i + 1 == choices.size() ? " or " : ", ";
+    names += name;
+    ++i;
+  }
+  r.fail(key, "unknown " + key + " '" + value + "'; expected " + names);
+}
 
 SimulationDesc read_simulation(ParamReader r) {
   SimulationDesc s;
@@ -27,18 +44,13 @@ SimulationDesc read_simulation(ParamReader r) {
   if (s.cfl) r.check_range("cfl", *s.cfl, 0, 1, true);
   if (!s.dt && !s.cfl) r.fail("", "give 'dt' (fixed substep), 'cfl' (adaptive substep), or both");
   s.gravity = r.get_or("gravity", s.gravity);
-  const std::string transfer = r.get_or<std::string>("transfer", "apic");
-  if (transfer == "apic") s.transfer = Transfer::apic;
-  else if (transfer == "pic") s.transfer = Transfer::pic;
-  else if (transfer == "flip") s.transfer = Transfer::flip;
-  else r.fail("transfer", "unknown transfer '" + transfer + "'; expected apic, pic or flip");
+  s.transfer = read_choice<Transfer>(
+      r, "transfer", {{"apic", Transfer::apic}, {"pic", Transfer::pic}, {"flip", Transfer::flip}});
   s.flip_blend = r.get_or("flip_blend", s.flip_blend);
   r.check_range("flip_blend", s.flip_blend, 0, 1);
-  const std::string kernel = r.get_or<std::string>("kernel", "quadratic");
-  if (kernel == "linear") s.kernel = Kernel::linear;
-  else if (kernel == "quadratic") s.kernel = Kernel::quadratic;
-  else if (kernel == "cubic") s.kernel = Kernel::cubic;
-  else r.fail("kernel", "unknown kernel '" + kernel + "'; expected linear, quadratic or cubic");
+  s.kernel = read_choice<Kernel>(r, "kernel", {{"quadratic", Kernel::quadratic},
+                                                {"linear", Kernel::linear},
+                                                {"cubic", Kernel::cubic}});
   s.damping = r.get_or("damping", s.damping);
   r.check_range("damping", s.damping, 0, 1e300);
   s.seed = r.get_or<std::uint64_t>("seed", s.seed);
@@ -68,11 +80,9 @@ GridDesc read_grid(ParamReader r) {
 }
 
 Boundary read_boundary(ParamReader& r) {
-  const std::string b = r.get_or<std::string>("boundary", "sticky");
-  if (b == "sticky") return Boundary::sticky;
-  if (b == "slip") return Boundary::slip;
-  if (b == "separate") return Boundary::separate;
-  r.fail("boundary", "unknown boundary '" + b + "'; expected sticky, slip or separate");
+  return read_choice<Boundary>(r, "boundary", {{"sticky", Boundary::sticky},
+                                               {"slip", Boundary::slip},
+                                               {"separate", Boundary::separate}});
 }
 
 WallDesc read_wall(ParamReader r) {
@@ -155,10 +165,8 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
   if (o.density) r.check_range("density", *o.density, 0, 1e300, true);
   o.particles_per_cell = r.get_or("particles_per_cell", o.particles_per_cell);
   r.check_range("particles_per_cell", o.particles_per_cell, 1, 1000);
-  const std::string sampling = r.get_or<std::string>("sampling", "jittered");
-  if (sampling == "regular") o.sampling = Sampling::regular;
-  else if (sampling != "jittered")
-    r.fail("sampling", "unknown sampling '" + sampling + "'; expected jittered or regular");
+  o.sampling = read_choice<Sampling>(
+      r, "sampling", {{"jittered", Sampling::jittered}, {"regular", Sampling::regular}});
   const int strata = static_cast<int>(std::lround(std::cbrt(o.particles_per_cell)));
   if (o.sampling == Sampling::regular && strata * strata * strata != o.particles_per_cell)
     r.fail("sampling", "regular sampling needs particles_per_cell to be a cube (1, 8, 27, ...), not " +

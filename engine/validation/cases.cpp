@@ -74,20 +74,21 @@ Mat3 cauchy_stress(const Particles& p, std::size_t q) {
   return -p.stress[q] / (p.volume0[q] * p.F[q].determinant());
 }
 
-Vec3 centroid(const Simulation& sim, std::size_t object) {
+/// Mass-weighted mean of a per-particle vector `field` (e.g. Particles::x) over one object.
+Vec3 object_mean(const Simulation& sim, std::size_t object, std::vector<Vec3> Particles::*field) {
   const ObjectInfo& o = sim.objects()[object];
   const Particles& p = sim.particles();
-  Vec3 c = Vec3::Zero();
-  for (std::size_t q = o.first; q < o.first + o.count; ++q) c += p.mass[q] * p.x[q];
-  return c / o.mass;
+  Vec3 sum = Vec3::Zero();
+  for (std::size_t q = o.first; q < o.first + o.count; ++q) sum += p.mass[q] * (p.*field)[q];
+  return sum / o.mass;
+}
+
+Vec3 centroid(const Simulation& sim, std::size_t object) {
+  return object_mean(sim, object, &Particles::x);
 }
 
 Vec3 mean_velocity(const Simulation& sim, std::size_t object) {
-  const ObjectInfo& o = sim.objects()[object];
-  const Particles& p = sim.particles();
-  Vec3 v = Vec3::Zero();
-  for (std::size_t q = o.first; q < o.first + o.count; ++q) v += p.mass[q] * p.v[q];
-  return v / o.mass;
+  return object_mean(sim, object, &Particles::v);
 }
 
 double rms(const std::vector<double>& e) {

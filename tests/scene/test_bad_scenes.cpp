@@ -94,7 +94,7 @@ TEST_CASE("malformed scenes exit with code 2 and say where and what", "[scene]")
       {"plane and box", "    boundary: slip", "    box: {min: [0, 0, 0], max: [1, 1, 1]}\n    boundary: slip", {"exactly one of 'plane' or 'box'"}},
       {"unknown boundary", "boundary: slip", "boundary: sticy", {"walls[0].boundary", "sticky, slip or separate"}},
       {"unknown transfer", "dt: 1.0e-3", "dt: 1.0e-3\n  transfer: mls", {"simulation.transfer", "apic, pic or flip"}},
-      {"unknown kernel", "dt: 1.0e-3", "dt: 1.0e-3\n  kernel: quintic", {"simulation.kernel", "linear, quadratic or cubic"}},
+      {"unknown kernel", "dt: 1.0e-3", "dt: 1.0e-3\n  kernel: quintic", {"simulation.kernel", "quadratic, linear or cubic"}},
       {"negative damping", "dt: 1.0e-3", "dt: 1.0e-3\n  damping: -1", {"simulation.damping", "out of range"}},
       {"unknown sampling", "    mass: 1", "    mass: 1\n    sampling: grid", {"objects[0].sampling", "jittered or regular"}},
       {"regular sampling of a non-cube count", "    mass: 1", "    mass: 1\n    particles_per_cell: 6\n    sampling: regular", {"objects[0].sampling", "cube", "not 6"}},
