@@ -38,8 +38,9 @@ Usage:
                                  list every registered material (and a scene's or a file's
                                  plugins) with its keys, units, defaults and ranges
   mpm preview DIR [--fps N]      join DIR/preview/frame_*.png into DIR/preview.mp4 (ffmpeg)
-  mpm bench [--cases jello,snow,sparse] [--particles N] [--threads N] [--csv FILE]
-                                 time standard cases (median of 3 after a warm-up)
+  mpm bench [--cases jello,snow,sparse,two_cubes] [--particles N] [--threads N] [--csv FILE]
+                                 time standard cases (median of 3 after a warm-up;
+                                 two_cubes: the whole scene, once, about 10 minutes)
   mpm study [--quick] [--cases SWEEP,...] -o DIR
                                  run the validation cases over sweeps of h, particles per
                                  cell, CFL, dt, transfer and kernel; write DIR/study.csv and

@@ -1,0 +1,41 @@
+// `mpm bench` on tiny cases: what it reports, not how fast (timings are never asserted).
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+
+#include "engine/bench.h"
+
+using namespace mpm;
+
+TEST_CASE("bench reports particles, rates and the stages each case runs", "[regression]") {
+  BenchOptions opt;
+  opt.cases = {"jello", "snow"};
+  opt.particles = 3000;
+  opt.substeps = 3;
+  opt.repeats = 1;
+  const std::vector<BenchResult> results = run_benchmarks(opt);
+  REQUIRE(results.size() == 2);
+  for (const BenchResult& r : results) {
+    INFO(r.name);
+    CHECK(r.particles > 1500);
+    CHECK(r.particles < 6000);
+    CHECK(r.particle_steps_per_second > 0);
+    CHECK(r.peak_rss_bytes_per_particle > 0);
+    const auto has = [&](const std::string& stage) {
+      return std::any_of(r.stage_ns.begin(), r.stage_ns.end(),
+                         [&](const auto& s) { return s.first == stage; });
+    };
+    CHECK(has("compute_stress"));
+    CHECK(has("grid_to_particles"));
+    CHECK(has("plasticity") == (r.name == "snow"));  // only what the scene calls for
+  }
+  const std::string table = format_bench_table(results);
+  CHECK(table.find("jello") != std::string::npos);
+  CHECK(format_bench_csv(results).find("snow") != std::string::npos);
+}
+
+TEST_CASE("bench refuses an unknown case with the list of cases", "[regression]") {
+  BenchOptions opt;
+  opt.cases = {"jelly"};
+  CHECK_THROWS_WITH(run_benchmarks(opt), Catch::Contains("two_cubes"));
+}
