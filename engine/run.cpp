@@ -46,14 +46,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
   // The dt to suggest if the run goes wrong: the CFL bound at cfl 0.5, from the last healthy
   // state seen at a frame end.
   const Real cfl = 0.5;
-  auto cfl_bound = [&] {
-    Real c = 0;
-    for (const MaterialRange& m : sim.materials())
-      c = std::max(c, m.material->max_wave_speed(
-                          std::span<const Mat3>(sim.particles().F).subspan(m.first, m.count)));
-    return cfl * sim.grid().h.minCoeff() / (c + sim.max_speed());
-  };
-  Real suggested_dt = cfl_bound();
+  Real suggested_dt = sim.cfl_bound(cfl);
   auto fail = [&](Instability why, int frame) {
     why.frame = frame;
     why.substep = sim.substeps();
@@ -129,7 +122,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
         fail({buf, ""}, f);
         break;
       }
-      suggested_dt = cfl_bound();
+      suggested_dt = sim.cfl_bound(cfl);
       sim.set_time(frame_end);
       result.frames_done = f;
       for (Observer* o : observers) o->on_frame(sim, f);

@@ -177,14 +177,18 @@ void Simulation::build_stages() {
   });
 }
 
-Real Simulation::stable_dt() {
-  const SimulationDesc& s = scene_.simulation;
-  if (!s.cfl) return *s.dt;
+Real Simulation::cfl_bound(Real cfl) const {
   Real c = 0;
   for (const auto& m : materials_)
-    c = std::max(c, m.material->max_wave_speed(slice(std::as_const(particles_.F), m)));
+    c = std::max(c, m.material->max_wave_speed(slice(particles_.F, m)));
   // dt <= C h / (c + |v|max) (references.md, "Time step").
-  const Real bound = *s.cfl * grid_.h.minCoeff() / (c + max_speed());
+  return cfl * grid_.h.minCoeff() / (c + max_speed());
+}
+
+Real Simulation::stable_dt() const {
+  const SimulationDesc& s = scene_.simulation;
+  if (!s.cfl) return *s.dt;
+  const Real bound = cfl_bound(*s.cfl);
   return s.dt ? std::min(*s.dt, bound) : bound;
 }
 

@@ -50,7 +50,10 @@ class Simulation {
                                             const MaterialRegistry& registry);
 
   /// Largest substep allowed now: the CFL bound (if cfl is set) capped by the fixed dt.
-  Real stable_dt();
+  Real stable_dt() const;
+  /// cfl h / (c + |v|max): the CFL bound for CFL number `cfl`, with c the largest wave speed
+  /// any material reports at the current F, s.
+  Real cfl_bound(Real cfl) const;
   /// Advances by one substep of `dt` seconds, running every stage in order.
   void substep(Real dt);
 

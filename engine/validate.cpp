@@ -12,14 +12,6 @@ double physical_memory_bytes() {
   return static_cast<double>(sysconf(_SC_PHYS_PAGES)) * static_cast<double>(sysconf(_SC_PAGE_SIZE));
 }
 
-Real initial_cfl_bound(Simulation& sim, Real cfl) {
-  Real c = 0;
-  const Particles& p = sim.particles();
-  for (const MaterialRange& m : sim.materials())
-    c = std::max(c, m.material->max_wave_speed(std::span<const Mat3>(p.F).subspan(m.first, m.count)));
-  return cfl * sim.grid().h.minCoeff() / (c + sim.max_speed());
-}
-
 namespace {
 
 std::string fmt(const char* f, double a, double b = 0, double c = 0) {
@@ -55,7 +47,7 @@ std::vector<std::string> scene_warnings(Simulation& sim) {
   for (const auto& [a, b] : overlapping_objects(sim))
     w.push_back("objects '" + sim.objects()[a].name + "' and '" + sim.objects()[b].name +
                 "' overlap at the start (they share grid cells)");
-  const Real bound = initial_cfl_bound(sim, 1.0);
+  const Real bound = sim.cfl_bound(1.0);
   if (!scene.simulation.cfl && scene.simulation.dt && *scene.simulation.dt > bound)
     w.push_back(fmt("simulation.dt = %g s is above the CFL bound h / (c + |v|max) = %.3g s at "
                     "the start; the run is likely to become unstable: lower dt or set cfl",
@@ -85,11 +77,11 @@ std::string scene_summary(Simulation& sim) {
          std::to_string(s.grid.buffer) + " cells\n";
   if (s.simulation.cfl)
     out += fmt("time step: adaptive, cfl %g, %.3g s at the start", *s.simulation.cfl,
-               initial_cfl_bound(sim, *s.simulation.cfl)) +
+               sim.cfl_bound(*s.simulation.cfl)) +
            (s.simulation.dt ? fmt(", capped at %g s\n", *s.simulation.dt) : std::string("\n"));
   else
     out += fmt("time step: fixed %g s (CFL bound h / (c + |v|max) at the start: %.3g s)\n",
-               *s.simulation.dt, initial_cfl_bound(sim, 1.0));
+               *s.simulation.dt, sim.cfl_bound(1.0));
   out += fmt("frames: %g of %g s\n", s.simulation.frames, s.simulation.frame_dt);
   out += "stages:";
   for (const Stage& st : sim.stages()) out += " " + st.name;

@@ -9,9 +9,6 @@
 
 namespace mpm {
 
-/// The CFL bound cfl * h / (c + |v|max) at the initial state, s.
-Real initial_cfl_bound(Simulation& sim, Real cfl);
-
 /// Legal but likely wrong: overlapping objects, a fixed dt above the CFL bound, fewer than
 /// two particles per cell per axis, a huge particle count. One line each.
 std::vector<std::string> scene_warnings(Simulation& sim);

@@ -170,8 +170,13 @@ class RestingColumn final : public Probe {
 class BarVibration final : public Probe {
  public:
   void on_start(const Simulation& sim, int) override {
-    X0_ = sim.particles().x;
+    const Particles& p = sim.particles();
     box_ = cube_box(sim.scene().objects.at(0));
+    const double L = box_.max.x() - box_.min.x();
+    for (std::size_t i = 0; i < p.size(); ++i) {  // q = sum_p w_p (x_p - X_p), fixed weights
+      X0_.push_back(p.x[i].x());
+      mode_.push_back(p.mass[i] * std::cos(M_PI * (p.x[i].x() - box_.min.x()) / L));
+    }
     energy0_ = sim.total_energy();
     energy_.name = "energy / initial energy";
     energy_.t.push_back(0);
@@ -179,10 +184,8 @@ class BarVibration final : public Probe {
   }
   void on_substep(const Simulation& sim, int) override {
     const Particles& p = sim.particles();
-    const double L = box_.max.x() - box_.min.x();
     double q = 0;
-    for (std::size_t i = 0; i < p.size(); ++i)
-      q += p.mass[i] * (p.x[i].x() - X0_[i].x()) * std::cos(M_PI * (X0_[i].x() - box_.min.x()) / L);
+    for (std::size_t i = 0; i < p.size(); ++i) q += mode_[i] * (p.x[i].x() - X0_[i]);
     const double t = sim.time();
     if (!q_.empty() && q_.back() != 0 && q != 0 && (q_.back() > 0) != (q > 0))
       crossings_.push_back(t_.back() + (t - t_.back()) * q_.back() / (q_.back() - q));
@@ -213,7 +216,7 @@ class BarVibration final : public Probe {
   }
 
  private:
-  std::vector<Vec3> X0_;
+  std::vector<double> X0_, mode_;  // reference x, and m cos(pi X / L) per particle
   Box box_;
   double energy0_ = 0;
   std::vector<double> t_, q_, crossings_;
