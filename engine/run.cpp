@@ -114,7 +114,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       result.energy_max = std::max(result.energy_max, energy);
       // The allowance scales with the energy in play: the start's, or what walls put in.
       const Real scale = std::max(std::abs(result.energy_start), std::abs(sim.wall_work()));
-      if (energy > std::abs(result.energy_start) + kEnergyGrowthLimit * scale + 1e-9) {
+      if (energy > result.energy_start + kEnergyGrowthLimit * scale + 1e-9) {
         char buf[200];
         std::snprintf(buf, sizeof buf,
                       "total energy less the work of moving walls grew from %.4g J to %.4g J",

@@ -13,21 +13,11 @@ namespace {
 /// whose stencil base lies in slab s writes nodes up to W (s + 1) - 1 + (N - 1) < W (s + 2).
 int slab_width(Kernel k) { return std::max(2, kernel_nodes(k) - 1); }
 
-}  // namespace
-
-void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& ord) {
+/// The counting sort of sort_particles for kernel K (dispatched once, not per particle).
+template <Kernel K>
+void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
   const std::size_t n = p.size();
-  ord.order.resize(n);
-  if (n == 0) {
-    grid.active = NodeRange{};
-    ord.slab_start.assign(1, 0);
-    return;
-  }
-  const auto base = [&](std::size_t i) {
-    return dispatch_kernel(kernel, [&]<Kernel K>() {
-      return stencil_base<K>(p.x[i], grid.origin, grid.inv_h);
-    });
-  };
+  const auto base = [&](std::size_t i) { return stencil_base<K>(p.x[i], grid.origin, grid.inv_h); };
   // Bounds of the stencil bases: the active nodes are [lo, hi + N - 1].
   Vec3i lo = Vec3i::Constant(1 << 30), hi = Vec3i::Constant(-(1 << 30));
   for (std::size_t i = 0; i < n; ++i) {
@@ -37,7 +27,7 @@ void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder
   }
   const Vec3i ext = hi - lo + Vec3i::Ones();
   grid.active.lo = lo;
-  grid.active.hi = hi + Vec3i::Constant(kernel_nodes(kernel) - 1);
+  grid.active.hi = hi + Vec3i::Constant(KernelTraits<K>::kNodes - 1);
 
   // Counting sort by base cell inside the active box (x slowest).
   const std::size_t cells = static_cast<std::size_t>(ext.x()) * ext.y() * ext.z();
@@ -51,7 +41,7 @@ void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder
     ++ord.counts[keys[i] + 1];
   }
   for (std::size_t c = 1; c <= cells; ++c) ord.counts[c] += ord.counts[c - 1];
-  const int width = slab_width(kernel);
+  const int width = slab_width(K);
   const int slabs = (ext.x() + width - 1) / width;
   ord.slab_start.resize(slabs + 1);
   const std::size_t plane = static_cast<std::size_t>(ext.y()) * ext.z();
@@ -60,6 +50,18 @@ void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder
     ord.slab_start[s] = ord.counts[x * plane];
   }
   for (std::size_t i = 0; i < n; ++i) ord.order[ord.counts[keys[i]]++] = static_cast<std::uint32_t>(i);
+}
+
+}  // namespace
+
+void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& ord) {
+  ord.order.resize(p.size());
+  if (p.size() == 0) {
+    grid.active = NodeRange{};
+    ord.slab_start.assign(1, 0);
+    return;
+  }
+  dispatch_kernel(kernel, [&]<Kernel K>() { sort_by_cell<K>(p, grid, ord); });
 }
 
 namespace {

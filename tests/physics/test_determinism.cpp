@@ -12,8 +12,9 @@ using namespace mpm;
 
 namespace {
 
-/// FNV-1a over the bytes of x, v, F and C.
-std::uint64_t state_hash(const Particles& p) {
+/// FNV-1a over the bytes of x, v, F, C and every material's state (snow's Jp).
+std::uint64_t state_hash(const Simulation& sim) {
+  const Particles& p = sim.particles();
   std::uint64_t h = 1469598103934665603ull;
   auto eat = [&](const void* data, std::size_t bytes) {
     const auto* b = static_cast<const unsigned char*>(data);
@@ -23,6 +24,10 @@ std::uint64_t state_hash(const Particles& p) {
   eat(p.v.data(), p.v.size() * sizeof(Vec3));
   eat(p.F.data(), p.F.size() * sizeof(Mat3));
   eat(p.C.data(), p.C.size() * sizeof(Mat3));
+  for (const MaterialRange& m : sim.materials()) {
+    const std::span<Real> state = m.material->state();
+    eat(state.data(), state.size() * sizeof(Real));
+  }
   return h;
 }
 
@@ -46,13 +51,14 @@ std::uint64_t run_with_threads(int threads) {
   const RunResult r = run_frames(*sim, 4, scene.simulation.frame_dt, {});
   REQUIRE(r.status == "ok");
   REQUIRE(sim->substeps() >= 200);
-  return state_hash(sim->particles());
+  return state_hash(*sim);
 }
 
 }  // namespace
 
 TEST_CASE("determinism: bit-identical state for 1 and 2 threads", "[physics]") {
+  const int threads = omp_get_max_threads();
   const std::uint64_t one = run_with_threads(1), two = run_with_threads(2);
-  omp_set_num_threads(omp_get_num_procs());
+  omp_set_num_threads(threads);
   CHECK(one == two);
 }

@@ -337,19 +337,6 @@ TEST_CASE("a run compared with itself passes with zero differences", "[summary]"
   CHECK(compare_summaries(run.summary, run.summary, parse_tolerance_overrides(tol, {"all=0"})).ok);
 }
 
-TEST_CASE("a run is bit-identical on 1 and 2 threads, so goldens can be exact", "[summary]") {
-  const int threads = omp_get_max_threads();
-  omp_set_num_threads(1);
-  Run one = run_two_cubes("summary_threads1", 3);
-  omp_set_num_threads(2);
-  Run two = run_two_cubes("summary_threads2", 3);
-  omp_set_num_threads(threads);
-  const Tolerances exact = parse_tolerance_overrides({}, {"all=0"});
-  const CompareResult r = compare_summaries(one.summary, two.summary, exact);
-  INFO(format_comparison(r));
-  CHECK(r.ok);
-}
-
 TEST_CASE("a nudged centroid fails at the right frame, object and quantity", "[summary]") {
   Run run = run_two_cubes("summary_nudge", 6);
   const Tolerances tol = default_tolerances(run.summary);

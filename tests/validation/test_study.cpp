@@ -25,7 +25,9 @@ TEST_CASE("quick study: convergence order, angular momentum, collision momentum"
   const double order = convergence_order(h, error);
   INFO("bar period error " << error[0] << ", " << error[1] << ", " << error[2] << ": order "
                            << order);
-  CHECK(order > 1);  // quadratic B-splines: second order expected (docs/accuracy.md)
+  // Quadratic B-splines on a lattice: second order (2.01 over four levels in docs/accuracy.md);
+  // 1.7 leaves room for the coarsest level (one cell across the bar) being pre-asymptotic.
+  CHECK(order > 1.7);
   for (std::size_t i = 1; i < error.size(); ++i) CHECK(error[i] < error[i - 1]);
   CHECK(apic >= 0);
   CHECK(apic < 1e-11);
