@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <fstream>
 #include <stdexcept>
+#include <type_traits>
 
 #include <hdf5.h>
 #include <algorithm>
@@ -79,7 +80,7 @@ void write_frame_hdf5(const std::filesystem::path& file, const Particles& p, Rea
       pos[3 * i + a] = static_cast<float>(p.x[i][a]);
       vel[3 * i + a] = static_cast<float>(p.v[i][a]);
     }
-    J[i] = static_cast<float>(p.F[i].determinant());
+    J[i] = static_cast<float>(to_real(p.F[i]).determinant());
     object[i] = static_cast<int>(p.object[i]);
   }
   quiet_hdf5();
@@ -180,16 +181,20 @@ std::filesystem::path numbered(const std::filesystem::path& dir, const char* pat
   return dir / name;
 }
 
-/// An N x width dataset of doubles from `n` fixed-size Eigen objects.
+/// An N x width dataset from N fixed-size Eigen objects, in their own scalar type.
 template <class T>
-void write_doubles(hid_t file, const char* name, const std::vector<T>& v, hsize_t width) {
+void write_rows(hid_t file, const char* name, const std::vector<T>& v, hsize_t width) {
   const hsize_t dims[2] = {v.size(), width};
-  write_dataset(file, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 2, dims,
+  // Stored in the particles' own precision, so a resumed run continues bit for bit.
+  constexpr bool f32 = std::is_same_v<typename T::Scalar, float>;
+  write_dataset(file, name, f32 ? H5T_IEEE_F32LE : H5T_IEEE_F64LE,
+                f32 ? H5T_NATIVE_FLOAT : H5T_NATIVE_DOUBLE, 2, dims,
                 v.empty() ? nullptr : static_cast<const void*>(v.data()->data()));
 }
 
+/// Reads an N x width dataset into N fixed-size Eigen objects (HDF5 converts the type).
 template <class T>
-void read_doubles(hid_t file, const char* name, std::vector<T>& v, std::size_t width) {
+void read_rows(hid_t file, const char* name, std::vector<T>& v, std::size_t width) {
   const std::vector<double> d = read_dataset<double>(file, name, H5T_NATIVE_DOUBLE, width);
   if (d.size() != v.size() * width)
     throw std::runtime_error(std::string("checkpoint: dataset ") + name + " has " +
@@ -207,10 +212,10 @@ void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, 
   {
     H5Handle f{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose};
     if (f.id < 0) throw std::runtime_error("cannot create checkpoint '" + tmp.string() + "'");
-    write_doubles(f.id, "x", p.x, 3);
-    write_doubles(f.id, "v", p.v, 3);
-    write_doubles(f.id, "F", p.F, 9);
-    if (!p.C.empty()) write_doubles(f.id, "C", p.C, 9);
+    write_rows(f.id, "x", p.x, 3);
+    write_rows(f.id, "v", p.v, 3);
+    write_rows(f.id, "F", p.F, 9);
+    if (!p.C.empty()) write_rows(f.id, "C", p.C, 9);
     for (std::size_t g = 0; g < sim.materials().size(); ++g) {
       const std::span<Real> st = sim.materials()[g].material->state();
       const hsize_t dims[1] = {st.size()};
@@ -231,10 +236,10 @@ int restore_checkpoint(const std::filesystem::path& file, Simulation& sim) {
   H5Handle f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
   if (f.id < 0) throw std::runtime_error("cannot open checkpoint '" + file.string() + "'");
   Particles& p = sim.particles();
-  read_doubles(f.id, "x", p.x, 3);
-  read_doubles(f.id, "v", p.v, 3);
-  read_doubles(f.id, "F", p.F, 9);
-  if (!p.C.empty()) read_doubles(f.id, "C", p.C, 9);
+  read_rows(f.id, "x", p.x, 3);
+  read_rows(f.id, "v", p.v, 3);
+  read_rows(f.id, "F", p.F, 9);
+  if (!p.C.empty()) read_rows(f.id, "C", p.C, 9);
   for (std::size_t g = 0; g < sim.materials().size(); ++g) {
     const std::span<Real> st = sim.materials()[g].material->state();
     const std::string name = "material_state_" + std::to_string(g);
@@ -255,7 +260,7 @@ void FrameOutput::write(const Simulation& sim, int frame) {
   const auto t0 = std::chrono::steady_clock::now();
   const Particles& p = sim.particles();
   J_.resize(p.size());
-  for (std::size_t i = 0; i < p.size(); ++i) J_[i] = p.F[i].determinant();
+  for (std::size_t i = 0; i < p.size(); ++i) J_[i] = to_real(p.F[i]).determinant();
   const FrameView view{p.x, p.v, p.object, J_, static_cast<double>(sim.time()), frame};
   for (Format f : desc_.formats) {
     switch (f) {

@@ -65,7 +65,6 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
   const Real cell_volume = h.prod();
   const Vec3 interior_lo = scene.grid.origin + scene.grid.buffer * h;
   const Vec3 interior_hi = scene.grid.max - scene.grid.buffer * h;
-  std::vector<Mat3> affine;  // initial velocity gradient per particle (APIC's C)
 
   for (std::size_t o = 0; o < scene.objects.size(); ++o) {
     const ObjectDesc& od = scene.objects[o];
@@ -112,21 +111,19 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     L += (Mat3() << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0).finished();
     P.x.insert(P.x.end(), points.begin(), points.end());
     for (const Vec3& x : points) P.v.push_back(od.velocity + L * (x - centroid));
-    affine.insert(affine.end(), n, L);
-    P.F.insert(P.F.end(), n, Mat3::Identity());
-    P.mass.insert(P.mass.end(), n, total_mass / n);
-    P.volume0.insert(P.volume0.end(), n, v0);
+    if (scene.simulation.transfer == Transfer::apic) P.C.insert(P.C.end(), n, to_stored(L));
+    P.F.insert(P.F.end(), n, StoredMat3::Identity());
     P.object.insert(P.object.end(), n, static_cast<std::uint32_t>(o));
+    P.object_mass.push_back(total_mass / n);
+    P.object_volume0.push_back(v0);
 
     const MaterialInfo* mat = registry.find(od.material);
     if (!mat) throw SceneError(od.loc, key + ".material", "unknown material '" + od.material + "'");
     sim->materials_.push_back(
-        {info.first, n, mat->create(od.params, GroupInfo{density, n})});
+        {info.first, n, mat->create(od.params, GroupInfo{density, n}), v0});
     sim->objects_.push_back(info);
   }
-  const std::size_t n = P.size();
-  if (scene.simulation.transfer == Transfer::apic) P.C = std::move(affine);
-  P.stress.assign(n, Mat3::Zero());
+  P.stress.assign(P.size(), StoredMat3::Zero());
   sim->walls_ = build_wall_planes(scene.walls);
   sim->build_stages();
   return sim;
@@ -141,8 +138,7 @@ void Simulation::build_stages() {
   add("sort", [this](Real) { sort_particles(particles_, scene_.simulation.kernel, grid_, order_); });
   add("compute_stress", [this](Real) {
     for (auto& m : materials_)
-      m.material->compute_stress(slice(std::as_const(particles_.F), m),
-                                 slice(std::as_const(particles_.volume0), m),
+      m.material->compute_stress(slice(std::as_const(particles_.F), m), m.volume0,
                                  slice(particles_.stress, m));
   });
   add("particles_to_grid",
@@ -214,7 +210,7 @@ Real Simulation::max_speed() const {
 Real Simulation::kinetic_energy() const {
   Real e = 0;
   for (std::size_t q = 0; q < particles_.size(); ++q)
-    e += 0.5 * particles_.mass[q] * particles_.v[q].squaredNorm();
+    e += 0.5 * particles_.mass(q) * particles_.v[q].squaredNorm();
   return e;
 }
 
@@ -222,7 +218,7 @@ Real Simulation::total_energy() const {
   Real gravitational = 0;
   const Vec3 g = scene_.simulation.gravity;
   for (std::size_t q = 0; q < particles_.size(); ++q)
-    gravitational -= particles_.mass[q] * g.dot(particles_.x[q] - grid_.origin);
+    gravitational -= particles_.mass(q) * g.dot(particles_.x[q] - grid_.origin);
   return kinetic_energy() + elastic_energy() + gravitational;
 }
 
@@ -244,7 +240,7 @@ std::size_t Simulation::fastest_particle() const {
 Real Simulation::elastic_energy() const {
   Real e = 0;
   for (const auto& m : materials_)
-    e += m.material->elastic_energy(slice(particles_.F, m), slice(particles_.volume0, m));
+    e += m.material->elastic_energy(slice(particles_.F, m), m.volume0);
   return e;
 }
 

@@ -24,8 +24,7 @@ FrameSummary summarize(const Simulation& sim, int frame) {
   const Particles& p = sim.particles();
   const Vec3 g = sim.scene().simulation.gravity;
   const Vec3 origin = sim.scene().grid.origin;
-  const std::span<const Mat3> F(p.F);
-  const std::span<const Real> volume0(p.volume0);
+  const std::span<const StoredMat3> F(p.F);
 
   FrameSummary out;
   out.frame = frame;
@@ -43,7 +42,7 @@ FrameSummary summarize(const Simulation& sim, int frame) {
     Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
     Vec3 hi = -lo;
     for (std::size_t q = o.first; q < end; ++q) {
-      const double m = p.mass[q];
+      const double m = p.mass(q);
       const Vec3& x = p.x[q];
       const Vec3& v = p.v[q];
       const Vec3 r = x - origin;
@@ -80,8 +79,7 @@ FrameSummary summarize(const Simulation& sim, int frame) {
     double elastic = 0;
     for (const MaterialRange& r : sim.materials()) {
       if (r.count == 0 || !r.material || r.first < o.first || r.first + r.count > end) continue;
-      elastic += r.material->elastic_energy(F.subspan(r.first, r.count),
-                                            volume0.subspan(r.first, r.count));
+      elastic += r.material->elastic_energy(F.subspan(r.first, r.count), r.volume0);
     }
     s.elastic_energy = elastic;
     out.objects.push_back(std::move(s));

@@ -70,11 +70,11 @@ template <Kernel K, bool kApic>
 void scatter_particle(const Particles& p, std::uint32_t q, Grid& g) {
   constexpr int N = KernelTraits<K>::kNodes;
   const auto s = make_stencil<K>(p.x[q], g.origin, g.inv_h);
-  const Real m = p.mass[q];
+  const Real m = p.mass(q);
   const Vec3 mv = m * p.v[q];
   Mat3 mC = Mat3::Zero();
-  if constexpr (kApic) mC = m * p.C[q];
-  const Mat3& S = p.stress[q];
+  if constexpr (kApic) mC = m * to_real(p.C[q]);
+  const Mat3 S = to_real(p.stress[q]);
   const Vec3 corner = g.position(s.base.x(), s.base.y(), s.base.z()) - p.x[q];
   for (int i = 0; i < N; ++i)
     for (int j = 0; j < N; ++j)
@@ -156,11 +156,11 @@ void gather_all(const Grid& g, Real flip_blend, Real dt, Particles& p) {
       p.v[q] = v;
     const Mat3 grad_v = sums.template middleCols<3>(1);
     if constexpr (kTransfer == Transfer::apic) {
-      if constexpr (K == Kernel::linear) p.C[q] = grad_v;
-      else p.C[q] = sums.template rightCols<3>() * inv_D.asDiagonal();
+      if constexpr (K == Kernel::linear) p.C[q] = to_stored(grad_v);
+      else p.C[q] = to_stored(sums.template rightCols<3>() * inv_D.asDiagonal());
     }
     // F <- (I + dt grad v) F (Stomakhin et al. 2013, eq. 7 with the elastic part only).
-    p.F[q] = (Mat3::Identity() + dt * grad_v) * p.F[q];
+    p.F[q] = to_stored((Mat3::Identity() + dt * grad_v) * to_real(p.F[q]));
   }
 }
 

@@ -16,25 +16,26 @@ class ElasticGroup final : public MaterialGroup {
   /// A group of particles sharing `model`, with reference density `rho0`.
   ElasticGroup(const Model& model, Real rho0) : model_(model), rho0_(rho0) {}
 
-  void compute_stress(std::span<const Mat3> F, std::span<const Real> volume0,
-                      std::span<Mat3> out) const override {
+  void compute_stress(std::span<const StoredMat3> F, Real volume0,
+                      std::span<StoredMat3> out) const override {
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p) out[p] = -volume0[p] * model_.kirchhoff(F[p]);
+    for (std::ptrdiff_t p = 0; p < n; ++p)
+      out[p] = to_stored(-volume0 * model_.kirchhoff(to_real(F[p])));
   }
 
-  Real max_wave_speed(std::span<const Mat3> F) const override {
+  Real max_wave_speed(std::span<const StoredMat3> F) const override {
     Real c = 0;
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
 #pragma omp parallel for schedule(static) reduction(max : c) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p) c = std::max(c, model_.wave_speed(F[p], rho0_));
+    for (std::ptrdiff_t p = 0; p < n; ++p) c = std::max(c, model_.wave_speed(to_real(F[p]), rho0_));
     return c;
   }
 
-  Real elastic_energy(std::span<const Mat3> F, std::span<const Real> volume0) const override {
+  Real elastic_energy(std::span<const StoredMat3> F, Real volume0) const override {
     Real e = 0;
-    for (std::size_t p = 0; p < F.size(); ++p) e += volume0[p] * model_.energy(F[p]);
-    return e;
+    for (std::size_t p = 0; p < F.size(); ++p) e += model_.energy(to_real(F[p]));
+    return volume0 * e;
   }
 
   /// The wrapped model.

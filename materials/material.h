@@ -58,21 +58,22 @@ class MaterialGroup {
  public:
   virtual ~MaterialGroup() = default;
 
-  /// Writes -V0 * tau (tau = P F^T, the Kirchhoff stress) for each particle into `out`.
-  virtual void compute_stress(std::span<const Mat3> F, std::span<const Real> volume0,
-                              std::span<Mat3> out) const = 0;
+  /// Writes -V0 * tau (tau = P F^T, the Kirchhoff stress) for each particle into `out`;
+  /// every particle of the group has the reference volume `volume0`.
+  virtual void compute_stress(std::span<const StoredMat3> F, Real volume0,
+                              std::span<StoredMat3> out) const = 0;
 
   /// True if the material changes F after the F update (plasticity).
   virtual bool has_plasticity() const { return false; }
 
   /// Projects F onto the elastic region, keeping the plastic part as group state.
-  virtual void apply_plasticity(std::span<Mat3> F) {}
+  virtual void apply_plasticity(std::span<StoredMat3> F) {}
 
   /// Largest elastic wave speed (m/s) over the range, at the current density rho0 / J.
-  virtual Real max_wave_speed(std::span<const Mat3> F) const = 0;
+  virtual Real max_wave_speed(std::span<const StoredMat3> F) const = 0;
 
   /// Total elastic energy (J) stored in the range: sum of V0 * psi(F).
-  virtual Real elastic_energy(std::span<const Mat3> F, std::span<const Real> volume0) const = 0;
+  virtual Real elastic_energy(std::span<const StoredMat3> F, Real volume0) const = 0;
 
   /// Per-particle state beyond F (e.g. plastic Jp), flat; empty if none. Checkpoints save and
   /// restore it through this view, so a resumed run continues bit for bit.

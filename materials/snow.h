@@ -27,8 +27,8 @@ struct SnowPlasticity {
 
   /// Moves the part of Fe outside the clamp range into the plastic part (section 7):
   /// Fe = U clamp(Sigma) V^T and Jp *= det(Sigma) / det(clamp(Sigma)), so det(Fe) Jp is kept
-  /// (unless min_Jp clamps Jp).
-  void project(Mat3& Fe, Real& Jp) const {
+  /// (unless min_Jp clamps Jp). Returns false if Fe was left unchanged.
+  bool project(Mat3& Fe, Real& Jp) const {
     const Real lo = 1 - critical_compression, hi = 1 + critical_stretch;  // 0 < lo <= 1 <= hi
     // The common case: all singular values inside (lo, hi), so the clamp changes nothing. That
     // holds iff det Fe > 0 and Fe^T Fe - lo^2 I and hi^2 I - Fe^T Fe are positive definite.
@@ -36,7 +36,7 @@ struct SnowPlasticity {
     if (Fe.determinant() > 0 && positive_definite(C - lo * lo * Mat3::Identity()) &&
         positive_definite(hi * hi * Mat3::Identity() - C)) {
       Jp = std::max(Jp, min_Jp);
-      return;
+      return false;
     }
     // Fe = R S with S = V Sigma V^T (Sigma signed as in svd_rv), so U = R V.
     Mat3 R, S, V;
@@ -48,6 +48,7 @@ struct SnowPlasticity {
     // price of not keeping det(Fe) Jp once it acts.
     Jp = std::max(Jp * s.prod() / c.prod(), min_Jp);
     Fe = R * V * c.asDiagonal() * V.transpose();
+    return true;
   }
 
   /// Hardening factor exp(xi (1 - Jp)) applied to mu and lambda.
@@ -62,38 +63,42 @@ class SnowGroup final : public MaterialGroup {
             std::size_t count)
       : elastic_(elastic), plastic_(plastic), rho0_(rho0), Jp_(count, 1) {}
 
-  void compute_stress(std::span<const Mat3> F, std::span<const Real> volume0,
-                      std::span<Mat3> out) const override {
+  void compute_stress(std::span<const StoredMat3> F, Real volume0,
+                      std::span<StoredMat3> out) const override {
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p) out[p] = -volume0[p] * hardened(p).kirchhoff(F[p]);
+    for (std::ptrdiff_t p = 0; p < n; ++p)
+      out[p] = to_stored(-volume0 * hardened(p).kirchhoff(to_real(F[p])));
   }
 
   bool has_plasticity() const override { return true; }
 
-  void apply_plasticity(std::span<Mat3> F) override {
+  void apply_plasticity(std::span<StoredMat3> F) override {
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p) plastic_.project(F[p], Jp_[p]);
+    for (std::ptrdiff_t p = 0; p < n; ++p) {
+      Mat3 Fe = to_real(F[p]);
+      if (plastic_.project(Fe, Jp_[p])) F[p] = to_stored(Fe);
+    }
   }
 
-  Real max_wave_speed(std::span<const Mat3> F) const override {
+  Real max_wave_speed(std::span<const StoredMat3> F) const override {
     Real c = 0;
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
     // Hardened moduli, at the current density rho0 / (Je Jp) (references.md, "Time step").
 #pragma omp parallel for schedule(static) reduction(max : c) if (n >= kParallelMinItems)
     for (std::ptrdiff_t p = 0; p < n; ++p) {
       const FixedCorotated m = hardened(p);
-      const Real J = std::max(std::abs(F[p].determinant()) * Jp_[p], Real(1e-6));
+      const Real J = std::max(std::abs(to_real(F[p]).determinant()) * Jp_[p], Real(1e-6));
       c = std::max(c, std::sqrt((m.lambda + 2 * m.mu) * J / rho0_));
     }
     return c;
   }
 
-  Real elastic_energy(std::span<const Mat3> F, std::span<const Real> volume0) const override {
+  Real elastic_energy(std::span<const StoredMat3> F, Real volume0) const override {
     Real e = 0;
-    for (std::size_t p = 0; p < F.size(); ++p) e += volume0[p] * hardened(p).energy(F[p]);
-    return e;
+    for (std::size_t p = 0; p < F.size(); ++p) e += hardened(p).energy(to_real(F[p]));
+    return volume0 * e;
   }
 
   std::span<Real> state() override { return Jp_; }

@@ -19,7 +19,7 @@ const Measure& Outcome::measure(const std::string& name) const {
 Vec3 linear_momentum(const Simulation& sim) {
   const Particles& p = sim.particles();
   Vec3 P = Vec3::Zero();
-  for (std::size_t q = 0; q < p.size(); ++q) P += p.mass[q] * p.v[q];
+  for (std::size_t q = 0; q < p.size(); ++q) P += p.mass(q) * p.v[q];
   return P;
 }
 
@@ -29,7 +29,7 @@ Vec3 angular_momentum(const Simulation& sim) {
   const bool apic = !p.C.empty();
   Vec3 L = Vec3::Zero();
   for (std::size_t q = 0; q < p.size(); ++q) {
-    L += p.mass[q] * p.x[q].cross(p.v[q]);
+    L += p.mass(q) * p.x[q].cross(p.v[q]);
     if (!apic) continue;
     // D_p = sum_i w_ip (x_i - x_p)(x_i - x_p)^T of the scene's kernel.
     const Mat3 D = dispatch_kernel(sim.scene().simulation.kernel, [&]<Kernel K>() {
@@ -44,8 +44,8 @@ Vec3 angular_momentum(const Simulation& sim) {
           }
       return d;
     });
-    const Mat3 B = p.C[q] * D;  // L_a += m eps_abc B_cb
-    L += p.mass[q] * Vec3(B(2, 1) - B(1, 2), B(0, 2) - B(2, 0), B(1, 0) - B(0, 1));
+    const Mat3 B = to_real(p.C[q]) * D;  // L_a += m eps_abc B_cb
+    L += p.mass(q) * Vec3(B(2, 1) - B(1, 2), B(0, 2) - B(2, 0), B(1, 0) - B(0, 1));
   }
   return L;
 }
@@ -71,7 +71,7 @@ double param(const ObjectDesc& o, const std::string& key) {
 
 /// Cauchy stress sigma = tau / J of particle q (compute_stress stored -V0 tau).
 Mat3 cauchy_stress(const Particles& p, std::size_t q) {
-  return -p.stress[q] / (p.volume0[q] * p.F[q].determinant());
+  return -to_real(p.stress[q]) / (p.volume0(q) * to_real(p.F[q]).determinant());
 }
 
 /// Mass-weighted mean of a per-particle vector `field` (e.g. Particles::x) over one object.
@@ -79,7 +79,7 @@ Vec3 object_mean(const Simulation& sim, std::size_t object, std::vector<Vec3> Pa
   const ObjectInfo& o = sim.objects()[object];
   const Particles& p = sim.particles();
   Vec3 sum = Vec3::Zero();
-  for (std::size_t q = o.first; q < o.first + o.count; ++q) sum += p.mass[q] * (p.*field)[q];
+  for (std::size_t q = o.first; q < o.first + o.count; ++q) sum += p.mass(q) * (p.*field)[q];
   return sum / o.mass;
 }
 
@@ -175,7 +175,7 @@ class BarVibration final : public Probe {
     const double L = box_.max.x() - box_.min.x();
     for (std::size_t i = 0; i < p.size(); ++i) {  // q = sum_p w_p (x_p - X_p), fixed weights
       X0_.push_back(p.x[i].x());
-      mode_.push_back(p.mass[i] * std::cos(M_PI * (p.x[i].x() - box_.min.x()) / L));
+      mode_.push_back(p.mass(i) * std::cos(M_PI * (p.x[i].x() - box_.min.x()) / L));
     }
     energy0_ = sim.total_energy();
     energy_.name = "energy / initial energy";

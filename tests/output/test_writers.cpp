@@ -209,7 +209,7 @@ Particles random_particles(std::size_t n, unsigned seed) {
   p.x = f.x;
   p.v = f.v;
   p.object = f.id;
-  for (Real J : f.J) p.F.push_back(Mat3::Identity() * std::cbrt(J));
+  for (Real J : f.J) p.F.push_back(to_stored(Mat3::Identity() * std::cbrt(J)));
   return p;
 }
 

@@ -22,8 +22,8 @@ std::uint64_t state_hash(const Simulation& sim) {
   };
   eat(p.x.data(), p.x.size() * sizeof(Vec3));
   eat(p.v.data(), p.v.size() * sizeof(Vec3));
-  eat(p.F.data(), p.F.size() * sizeof(Mat3));
-  eat(p.C.data(), p.C.size() * sizeof(Mat3));
+  eat(p.F.data(), p.F.size() * sizeof(StoredMat3));
+  eat(p.C.data(), p.C.size() * sizeof(StoredMat3));
   for (const MaterialRange& m : sim.materials()) {
     const std::span<Real> state = m.material->state();
     eat(state.data(), state.size() * sizeof(Real));

@@ -78,7 +78,7 @@ Independent compute_independently(const Simulation& sim) {
   std::vector<double> count(n_obj, 0);
   for (std::size_t q = 0; q < p.size(); ++q) {
     const std::size_t k = p.object[q];
-    const double m = p.mass[q];
+    const double m = p.mass(q);
     const Vec3 &x = p.x[q], &v = p.v[q];
     r.mass[k] += m;
     r.centroid[k] += m * x;
@@ -435,7 +435,7 @@ TEST_CASE("free fall seen through the summary: p grows by M g t, energy as sympl
   const double dt = 0.002;
   double mass[2] = {0, 0};
   const Particles& p = run.sim->particles();
-  for (std::size_t q = 0; q < p.size(); ++q) mass[p.object[q]] += p.mass[q];
+  for (std::size_t q = 0; q < p.size(); ++q) mass[p.object[q]] += p.mass(q);
   const FrameSummary& first = run.summary.frames.front();
   for (const FrameSummary& f : run.summary.frames) {
     INFO("frame " << f.frame);

@@ -2,6 +2,7 @@
 /// \file Shared helpers for the test suite.
 
 #include <filesystem>
+#include <limits>
 #include <random>
 #include <string>
 
@@ -29,6 +30,20 @@ inline SceneDesc scene_from(const std::string& yaml) {
   MaterialRegistry registry = builtin_registry();
   return load_scene_from_string(yaml, source_dir() / "scenes" / "test.yaml", registry);
 }
+
+/// Machine epsilon of the particles' stored matrices (F, C, stress): float unless the build
+/// sets MPM_DOUBLE_PARTICLES. Tolerances that include storage rounding scale with it.
+inline constexpr double kStoredEps = std::numeric_limits<StoredReal>::epsilon();
+
+/// Bound on APIC's relative angular momentum drift over `substeps`: exact in exact arithmetic
+/// (Jiang et al. 2015), so round-off (1e-11), plus the rounding of C to StoredReal in every
+/// substep, each moving at most eps / 2 of the part of L that C carries (a fraction of L).
+inline double apic_bound(std::size_t substeps) {
+  return 1e-11 + static_cast<double>(substeps) * kStoredEps / 2;
+}
+
+/// `F` rounded to the stored precision, as the engine would keep it.
+inline Mat3 stored(const Mat3& F) { return to_real(to_stored(F)); }
 
 /// A random matrix with entries in [-scale, scale] added to the identity.
 inline Mat3 random_near_identity(std::mt19937& rng, double scale) {
