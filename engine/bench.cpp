@@ -153,8 +153,8 @@ std::vector<BenchResult> run_benchmarks(const BenchOptions& opt) {
 std::string format_bench_table(const std::vector<BenchResult>& results) {
   std::ostringstream s;
   char line[512];
-  std::snprintf(line, sizeof line, "mpm bench  (precision: %s, commit %s)\n",
-                sizeof(Real) == 8 ? "double" : "float", MPM_GIT_COMMIT);
+  std::snprintf(line, sizeof line, "mpm bench  (particle matrices stored in %s, arithmetic in double; commit %s)\n",
+                kStoredPrecision, MPM_GIT_COMMIT);
   s << line;
   std::snprintf(line, sizeof line, "%-8s %10s %10s %8s %7s %14s %10s\n", "case", "particles",
                 "nodes", "substeps", "threads", "Mparticle-st/s", "B/particle");
@@ -184,7 +184,7 @@ std::string format_bench_csv(const std::vector<BenchResult>& results) {
   for (const BenchResult& r : results)
     for (const auto& [n, v] : r.stage_ns)
       s << r.name << ',' << r.particles << ',' << r.grid_nodes << ',' << r.substeps << ','
-        << r.threads << ',' << (sizeof(Real) == 8 ? "double" : "float") << ',' << MPM_GIT_COMMIT
+        << r.threads << ',' << kStoredPrecision << ',' << MPM_GIT_COMMIT
         << ',' << r.particle_steps_per_second << ',' << r.peak_rss_bytes_per_particle << ',' << n
         << ',' << v << '\n';
   return s.str();

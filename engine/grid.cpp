@@ -4,14 +4,16 @@
 
 namespace mpm {
 
-Grid::Grid(const GridDesc& d, bool keep_old_velocity)
+Grid::Grid(const GridDesc& d, bool flip)
     : origin(d.origin), h(d.spacing()), inv_h(h.cwiseInverse()),
       nodes(d.dims + Vec3i::Ones()), buffer(d.buffer) {
   const std::size_t n = static_cast<std::size_t>(nodes.x()) * nodes.y() * nodes.z();
   mass.assign(n, 0);
   velocity.assign(n, Vec3::Zero());
-  force.assign(n, Vec3::Zero());
-  if (keep_old_velocity) velocity_old.assign(n, Vec3::Zero());
+  if (flip) {
+    force.assign(n, Vec3::Zero());
+    velocity_old.assign(n, Vec3::Zero());
+  }
 }
 
 }  // namespace mpm

@@ -26,11 +26,11 @@ struct Grid {
 
   std::vector<Real> mass;          ///< Node mass, kg.
   std::vector<Vec3> velocity;      ///< Momentum after transfer, then velocity, m/s.
-  std::vector<Vec3> force;         ///< Internal force from stress, N.
+  std::vector<Vec3> force;         ///< Internal force from stress, N (FLIP only; else empty).
   std::vector<Vec3> velocity_old;  ///< Velocity before forces (FLIP only; else empty).
 
-  /// A grid for `desc`; `keep_old_velocity` allocates velocity_old for FLIP.
-  Grid(const GridDesc& desc, bool keep_old_velocity);
+  /// A grid for `desc`; `flip` allocates velocity_old and force, which only FLIP uses.
+  Grid(const GridDesc& desc, bool flip);
   /// Linear index of node (i, j, k).
   std::size_t index(int i, int j, int k) const {
     return (static_cast<std::size_t>(i) * nodes.y() + j) * nodes.z() + k;
@@ -60,7 +60,7 @@ namespace mpm {
 /// Momentum to velocity, v_i = (m v)_i / m_i; keeps a copy in velocity_old for FLIP.
 void grid_update(Grid& grid);
 
-/// v_i += dt f_i / m_i: the internal forces scattered by particles_to_grid.
+/// v_i += dt f_i / m_i: the internal forces particles_to_grid scattered for FLIP.
 void apply_stress_forces(Real dt, Grid& grid);
 
 /// v_i += dt g on nodes with mass.

@@ -34,9 +34,9 @@ Simulation::Simulation(const SceneDesc& scene)
 
 namespace {
 
-/// Bytes of node state per grid node (mass, velocity, force, and old velocity for FLIP).
+/// Bytes of node state per grid node (mass, velocity, and force and old velocity for FLIP).
 double bytes_per_node(const SceneDesc& s) {
-  return sizeof(Real) + 2 * sizeof(Vec3) + (s.simulation.transfer == Transfer::flip ? sizeof(Vec3) : 0);
+  return sizeof(Real) + sizeof(Vec3) + (s.simulation.transfer == Transfer::flip ? 2 * sizeof(Vec3) : 0);
 }
 
 /// Throws SceneError if `bytes` cannot fit in this machine's memory.
@@ -142,12 +142,14 @@ void Simulation::build_stages() {
                                  slice(particles_.stress, m));
   });
   add("particles_to_grid",
-      [this](Real) {
+      [this](Real dt) {
         const SimulationDesc& sd = scene_.simulation;
-        particles_to_grid(particles_, order_, sd.transfer, sd.kernel, grid_);
+        particles_to_grid(particles_, order_, sd.transfer, sd.kernel, dt, grid_);
       });
   add("grid_update", [this](Real) { grid_update(grid_); });
-  add("stress_forces", [this](Real dt) { apply_stress_forces(dt, grid_); });
+  // PIC and APIC scatter the stress force as an impulse (see particles_to_grid).
+  if (s.transfer == Transfer::flip)
+    add("stress_forces", [this](Real dt) { apply_stress_forces(dt, grid_); });
   if (s.gravity.squaredNorm() > 0)
     add("gravity", [this](Real dt) { apply_gravity(dt, scene_.simulation.gravity, grid_); });
   if (s.damping > 0)

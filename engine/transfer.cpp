@@ -66,55 +66,67 @@ void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder
 
 namespace {
 
-template <Kernel K, bool kApic>
-void scatter_particle(const Particles& p, std::uint32_t q, Grid& g) {
+/// Scatters particle q. With kImpulse the stress force enters the momentum as the impulse
+/// dt f; otherwise (FLIP, which needs the velocity before forces) it goes to g.force.
+template <Kernel K, bool kApic, bool kImpulse>
+void scatter_particle(const Particles& p, std::uint32_t q, Real dt, Grid& g) {
   constexpr int N = KernelTraits<K>::kNodes;
   const auto s = make_stencil<K>(p.x[q], g.origin, g.inv_h);
   const Real m = p.mass(q);
-  const Vec3 mv = m * p.v[q];
-  Mat3 mC = Mat3::Zero();
-  if constexpr (kApic) mC = m * to_real(p.C[q]);
-  const Mat3 S = to_real(p.stress[q]);
-  const Vec3 corner = g.position(s.base.x(), s.base.y(), s.base.z()) - p.x[q];
+  // Momentum at node (i, j, k): m v + m C (corner + (i, j, k) h) = a + i c0 + j c1 + k c2.
+  Vec3 a = m * p.v[q];
+  Mat3 c = Mat3::Zero();
+  if constexpr (kApic) {
+    const Mat3 mC = m * to_real(p.C[q]);
+    a += mC * (g.position(s.base.x(), s.base.y(), s.base.z()) - p.x[q]);
+    c = mC * g.h.asDiagonal();
+  }
+  const Mat3 S = (kImpulse ? dt : Real(1)) * to_real(p.stress[q]);
   for (int i = 0; i < N; ++i)
-    for (int j = 0; j < N; ++j)
+    for (int j = 0; j < N; ++j) {
+      const Vec3 a_ij = a + i * c.col(0) + j * c.col(1);
       for (int k = 0; k < N; ++k) {
         const std::size_t idx = g.index(s.base.x() + i, s.base.y() + j, s.base.z() + k);
         const Real w = s.weight(i, j, k);
+        const Vec3 f = S * s.gradient(i, j, k);
         g.mass[idx] += w * m;
-        if constexpr (kApic) {
-          const Vec3 dpos = corner + Vec3(i, j, k).cwiseProduct(g.h);
-          g.velocity[idx] += w * (mv + mC * dpos);
+        if constexpr (kImpulse) {
+          g.velocity[idx] += w * (a_ij + k * c.col(2)) + f;
         } else {
-          g.velocity[idx] += w * mv;
+          g.velocity[idx] += w * (a_ij + k * c.col(2));
+          g.force[idx] += f;
         }
-        g.force[idx] += S * s.gradient(i, j, k);
       }
+    }
 }
 
-template <Kernel K, bool kApic>
-void scatter_all(const Particles& p, const ParticleOrder& ord, Grid& g) {
+template <Kernel K, bool kApic, bool kImpulse>
+void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt, Grid& g) {
   const int slabs = static_cast<int>(ord.slab_start.size()) - 1;
   for (int color = 0; color < 2; ++color) {
 #pragma omp parallel for schedule(dynamic, 1) if (ord.order.size() >= kParallelMinItems)
     for (int s = color; s < slabs; s += 2)
       for (std::size_t q = ord.slab_start[s]; q < ord.slab_start[s + 1]; ++q)
-        scatter_particle<K, kApic>(p, ord.order[q], g);
+        scatter_particle<K, kApic, kImpulse>(p, ord.order[q], dt, g);
   }
 }
 
 }  // namespace
 
 void particles_to_grid(const Particles& p, const ParticleOrder& ord, Transfer transfer,
-                       Kernel kernel, Grid& g) {
+                       Kernel kernel, Real dt, Grid& g) {
+  const bool impulse = transfer != Transfer::flip;
   for_each_active_node(g, [&](int, int, int, std::size_t idx) {
     g.mass[idx] = 0;
     g.velocity[idx].setZero();
-    g.force[idx].setZero();
+    if (!impulse) g.force[idx].setZero();
   });
   dispatch_kernel(kernel, [&]<Kernel K>() {
-    if (transfer == Transfer::apic) scatter_all<K, true>(p, ord, g);
-    else scatter_all<K, false>(p, ord, g);
+    switch (transfer) {
+      case Transfer::apic: scatter_all<K, true, true>(p, ord, dt, g); break;
+      case Transfer::pic: scatter_all<K, false, true>(p, ord, dt, g); break;
+      case Transfer::flip: scatter_all<K, false, false>(p, ord, dt, g); break;
+    }
   });
 }
 

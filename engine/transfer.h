@@ -29,8 +29,11 @@ void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder
 /// Clears the active nodes, then scatters mass, momentum (with the APIC affine term
 /// m C (x_i - x_p), Jiang et al. 2015 eq. 11) and the stress force
 /// f_i = -sum_p V0 tau_p grad w_ip (Jiang et al. 2016 course notes, eq. 189) to the grid.
+/// For PIC and APIC the force enters the momentum as the impulse dt f_i, so grid_update's
+/// v_i = (m v)_i / m_i is already v_i + dt f_i / m_i. FLIP keeps f_i in grid.force, to be
+/// applied after the velocity before forces is saved.
 void particles_to_grid(const Particles& p, const ParticleOrder& order, Transfer transfer,
-                       Kernel kernel, Grid& grid);
+                       Kernel kernel, Real dt, Grid& grid);
 
 /// Gathers velocity (PIC, FLIP blend, or APIC with C = B D^-1, D = h^2 / 4 quadratic, h^2 / 3
 /// cubic, Jiang et al. 2015 eq. 8-10) into the particles, and updates F <- (I + dt grad v) F

@@ -73,7 +73,7 @@ TEST_CASE("P2G keeps mass and linear momentum to round-off", "[transfers]") {
     Grid g(unit_grid(16), false);
     ParticleOrder ord;
     sort_particles(p, kernel, g, ord);
-    particles_to_grid(p, ord, tr, kernel, g);
+    particles_to_grid(p, ord, tr, kernel, 0, g);
     const GridTotals t = grid_totals_of_momentum(g);
     double mass = 0;
     Vec3 mom = Vec3::Zero();
@@ -90,7 +90,7 @@ TEST_CASE("P2G then G2P keeps linear momentum", "[transfers]") {
     Grid g(unit_grid(16), false);
     ParticleOrder ord;
     sort_particles(p, kernel, g, ord);
-    particles_to_grid(p, ord, tr, kernel, g);
+    particles_to_grid(p, ord, tr, kernel, 0, g);
     const Vec3 grid_mom = grid_totals_of_momentum(g).momentum;
     grid_update(g);
     grid_to_particles(g, tr, kernel, 0, 0, p);
@@ -108,11 +108,11 @@ TEST_CASE("APIC round trip keeps angular momentum, PIC does not", "[transfers]")
     Grid g(unit_grid(16), false);
     ParticleOrder ord;
     sort_particles(p, kernel, g, ord);
-    particles_to_grid(p, ord, tr, kernel, g);
+    particles_to_grid(p, ord, tr, kernel, 0, g);
     const Vec3 before = grid_totals_of_momentum(g).angular;
     grid_update(g);
     grid_to_particles(g, tr, kernel, 0, 0, p);
-    particles_to_grid(p, ord, tr, kernel, g);
+    particles_to_grid(p, ord, tr, kernel, 0, g);
     const Vec3 after = grid_totals_of_momentum(g).angular;
     return (after - before).norm() / before.norm();
   };
@@ -126,23 +126,54 @@ TEST_CASE("APIC round trip keeps angular momentum, PIC does not", "[transfers]")
 }
 
 TEST_CASE("P2G gives the same grid for 1 and 2 threads", "[transfers]") {
-  // 20000 particles: above kParallelMinItems, so two threads really scatter at once.
+  // 20000 particles: above kParallelMinItems, so two threads really scatter at once. APIC
+  // scatters the stress as an impulse into the momentum, FLIP into the force array.
   Particles p = random_cloud(20000, true, 4);
   for (auto& S : p.stress) S = StoredMat3::Random();
-  for (Kernel kernel : kAllKernels) {
-  auto scatter = [&](int threads) {
+  for (Kernel kernel : kAllKernels)
+  for (Transfer tr : {Transfer::apic, Transfer::flip}) {
+    auto scatter = [&](int threads) {
+      omp_set_num_threads(threads);
+      Grid g(unit_grid(16), tr == Transfer::flip);
+      ParticleOrder ord;
+      sort_particles(p, kernel, g, ord);
+      particles_to_grid(p, ord, tr, kernel, 1e-3, g);
+      return g;
+    };
+    const int threads = omp_get_max_threads();
+    const Grid a = scatter(1), b = scatter(2);
     omp_set_num_threads(threads);
-    Grid g(unit_grid(16), false);
+    CHECK(a.mass == b.mass);
+    CHECK(a.velocity == b.velocity);
+    CHECK(a.force == b.force);
+    CHECK(a.force.empty() == (tr != Transfer::flip));
+  }
+}
+
+TEST_CASE("the stress impulse scattered with the momentum equals the force applied after",
+          "[transfers]") {
+  // PIC folds dt f_i into the momentum; FLIP scatters f_i and applies it after grid_update.
+  // Both give v_i + dt f_i / m_i on every node, up to round-off.
+  Particles p = random_cloud(3000, false, 5);
+  for (auto& S : p.stress) S = StoredMat3::Random();
+  const Real dt = 1e-3;
+  for (Kernel kernel : kAllKernels) {
+    Grid impulse(unit_grid(16), false), force(unit_grid(16), true);
     ParticleOrder ord;
-    sort_particles(p, kernel, g, ord);
-    particles_to_grid(p, ord, Transfer::apic, kernel, g);
-    return g;
-  };
-  const int threads = omp_get_max_threads();
-  const Grid a = scatter(1), b = scatter(2);
-  omp_set_num_threads(threads);
-  CHECK(a.mass == b.mass);
-  CHECK(a.velocity == b.velocity);
-  CHECK(a.force == b.force);
+    sort_particles(p, kernel, impulse, ord);
+    sort_particles(p, kernel, force, ord);
+    particles_to_grid(p, ord, Transfer::pic, kernel, dt, impulse);
+    particles_to_grid(p, ord, Transfer::flip, kernel, dt, force);
+    grid_update(impulse);
+    grid_update(force);
+    apply_stress_forces(dt, force);
+    double diff = 0, scale = 0;
+    for_each_active_node(impulse, [&](int, int, int, std::size_t i) {
+      diff = std::max(diff, (impulse.velocity[i] - force.velocity[i]).norm());
+      scale = std::max(scale, (force.velocity[i] - force.velocity_old[i]).norm());
+    });
+    INFO("kernel " << static_cast<int>(kernel) << ": largest dt f / m " << scale);
+    CHECK(scale > 0);  // the stress really moved the nodes
+    CHECK(diff <= 1e-12 * scale + 1e-13);
   }
 }
