@@ -61,12 +61,13 @@ BenchResult run_whole_scene(const std::string& name) {
   BenchResult r;
   r.name = name;
   r.particles = static_cast<long>(sim->particles().size());
-  r.grid_nodes = static_cast<long>(sim->grid().mass.size());
+  r.grid_nodes = static_cast<long>(sim->grid().nodes.cast<double>().prod());
   r.substeps = static_cast<int>(sim->substeps());
   r.threads = omp_get_max_threads();
   const double steps = static_cast<double>(r.particles) * r.substeps;
   r.particle_steps_per_second = steps / run.loop_seconds;
   for (const Stage& st : sim->stages()) r.stage_ns.emplace_back(st.name, st.seconds * 1e9 / steps);
+  r.stored_nodes = static_cast<long>(sim->grid().mass.size());
   r.peak_rss_bytes_per_particle = peak_rss_bytes() / r.particles;
   return r;
 }
@@ -82,7 +83,7 @@ BenchResult run_case(const std::string& name, const BenchOptions& opt) {
   BenchResult r;
   r.name = name;
   r.particles = static_cast<long>(sim->particles().size());
-  r.grid_nodes = static_cast<long>(sim->grid().mass.size());
+  r.grid_nodes = static_cast<long>(sim->grid().nodes.cast<double>().prod());
   r.substeps = opt.substeps;
   r.threads = omp_get_max_threads();
   const Real dt = *scene.simulation.dt;
@@ -110,6 +111,7 @@ BenchResult run_case(const std::string& name, const BenchOptions& opt) {
   r.particle_steps_per_second = rates[mid];
   for (std::size_t i = 0; i < sim->stages().size(); ++i)
     r.stage_ns.emplace_back(sim->stages()[i].name, stage_runs[mid][i]);
+  r.stored_nodes = static_cast<long>(sim->grid().mass.size());
   r.peak_rss_bytes_per_particle = peak_rss_bytes() / r.particles;
   return r;
 }
@@ -117,7 +119,8 @@ BenchResult run_case(const std::string& name, const BenchOptions& opt) {
 std::string serialize(const BenchResult& r) {
   std::ostringstream s;
   s.precision(17);
-  s << r.name << ' ' << r.particles << ' ' << r.grid_nodes << ' ' << r.substeps << ' '
+  s << r.name << ' ' << r.particles << ' ' << r.grid_nodes << ' ' << r.stored_nodes << ' '
+    << r.substeps << ' '
     << r.threads << ' ' << r.particle_steps_per_second << ' ' << r.peak_rss_bytes_per_particle;
   for (const auto& [n, v] : r.stage_ns) s << ' ' << n << ' ' << v;
   return s.str();
@@ -126,7 +129,7 @@ std::string serialize(const BenchResult& r) {
 BenchResult deserialize(const std::string& text) {
   std::istringstream s(text);
   BenchResult r;
-  s >> r.name >> r.particles >> r.grid_nodes >> r.substeps >> r.threads >>
+  s >> r.name >> r.particles >> r.grid_nodes >> r.stored_nodes >> r.substeps >> r.threads >>
       r.particle_steps_per_second >> r.peak_rss_bytes_per_particle;
   std::string n;
   double v;
@@ -156,12 +159,13 @@ std::string format_bench_table(const std::vector<BenchResult>& results) {
   std::snprintf(line, sizeof line, "mpm bench  (particle matrices stored in %s, arithmetic in double; commit %s)\n",
                 kStoredPrecision, MPM_GIT_COMMIT);
   s << line;
-  std::snprintf(line, sizeof line, "%-8s %10s %10s %8s %7s %14s %10s\n", "case", "particles",
-                "nodes", "substeps", "threads", "Mparticle-st/s", "B/particle");
+  std::snprintf(line, sizeof line, "%-9s %10s %10s %10s %8s %7s %14s %10s\n", "case",
+                "particles", "nodes", "stored", "substeps", "threads", "Mparticle-st/s",
+                "B/particle");
   s << line;
   for (const BenchResult& r : results) {
-    std::snprintf(line, sizeof line, "%-8s %10ld %10ld %8d %7d %14.3f %10.0f\n", r.name.c_str(),
-                  r.particles, r.grid_nodes, r.substeps, r.threads,
+    std::snprintf(line, sizeof line, "%-9s %10ld %10ld %10ld %8d %7d %14.3f %10.0f\n",
+                  r.name.c_str(), r.particles, r.grid_nodes, r.stored_nodes, r.substeps, r.threads,
                   r.particle_steps_per_second / 1e6, r.peak_rss_bytes_per_particle);
     s << line;
   }
@@ -179,12 +183,13 @@ std::string format_bench_table(const std::vector<BenchResult>& results) {
 
 std::string format_bench_csv(const std::vector<BenchResult>& results) {
   std::ostringstream s;
-  s << "case,particles,grid_nodes,substeps,threads,precision,commit,particle_steps_per_second,"
+  s << "case,particles,grid_nodes,stored_nodes,substeps,threads,precision,commit,"
+       "particle_steps_per_second,"
        "peak_rss_bytes_per_particle,stage,ns_per_particle_step\n";
   for (const BenchResult& r : results)
     for (const auto& [n, v] : r.stage_ns)
-      s << r.name << ',' << r.particles << ',' << r.grid_nodes << ',' << r.substeps << ','
-        << r.threads << ',' << kStoredPrecision << ',' << MPM_GIT_COMMIT
+      s << r.name << ',' << r.particles << ',' << r.grid_nodes << ',' << r.stored_nodes << ','
+        << r.substeps << ',' << r.threads << ',' << kStoredPrecision << ',' << MPM_GIT_COMMIT
         << ',' << r.particle_steps_per_second << ',' << r.peak_rss_bytes_per_particle << ',' << n
         << ',' << v << '\n';
   return s.str();

@@ -21,7 +21,8 @@ struct BenchOptions {
 struct BenchResult {
   std::string name;                  ///< Case name.
   long particles = 0;                ///< Particles simulated.
-  long grid_nodes = 0;               ///< Nodes of the background grid.
+  long grid_nodes = 0;               ///< Nodes of the whole domain.
+  long stored_nodes = 0;             ///< Nodes with storage (the active blocks) at the end.
   int substeps = 0;                  ///< Substeps per repetition.
   int threads = 0;                   ///< Threads used.
   double particle_steps_per_second = 0;  ///< Median over repetitions.

@@ -6,14 +6,33 @@ namespace mpm {
 
 Grid::Grid(const GridDesc& d, bool flip)
     : origin(d.origin), h(d.spacing()), inv_h(h.cwiseInverse()),
-      nodes(d.dims + Vec3i::Ones()), buffer(d.buffer) {
-  const std::size_t n = static_cast<std::size_t>(nodes.x()) * nodes.y() * nodes.z();
-  mass.assign(n, 0);
-  velocity.assign(n, Vec3::Zero());
+      nodes(d.dims + Vec3i::Ones()), buffer(d.buffer),
+      blocks((nodes + Vec3i::Constant(kBlockEdge - 1)) / kBlockEdge), flip(flip) {
+  slot.assign(static_cast<std::size_t>(blocks.x()) * blocks.y() * blocks.z(), -1);
+}
+
+void Grid::activate_blocks(const Vec3i& lo, const Vec3i& hi) {
+  block_first.clear();
+  for (int bi = lo.x(); bi <= hi.x(); ++bi)
+    for (int bj = lo.y(); bj <= hi.y(); ++bj)
+      for (int bk = lo.z(); bk <= hi.z(); ++bk) {
+        std::int32_t& s = slot[(static_cast<std::size_t>(bi) * blocks.y() + bj) * blocks.z() + bk];
+        if (s < 0) continue;
+        s = static_cast<std::int32_t>(block_first.size());
+        block_first.emplace_back(bi * kBlockEdge, bj * kBlockEdge, bk * kBlockEdge);
+      }
+  const std::size_t n = block_first.size() * kBlockNodes;
+  mass.resize(n);
+  velocity.resize(n);
   if (flip) {
-    force.assign(n, Vec3::Zero());
-    velocity_old.assign(n, Vec3::Zero());
+    force.resize(n);
+    velocity_old.resize(n);
   }
+}
+
+void Grid::release_blocks() {
+  for (const Vec3i& f : block_first) slot[block_of(f.x(), f.y(), f.z())] = -1;
+  block_first.clear();
 }
 
 }  // namespace mpm
@@ -21,11 +40,10 @@ Grid::Grid(const GridDesc& d, bool flip)
 namespace mpm {
 
 void grid_update(Grid& g) {
-  const bool flip = !g.velocity_old.empty();
   for_each_active_node(g, [&](int, int, int, std::size_t idx) {
     const Real m = g.mass[idx];
     g.velocity[idx] = m > 0 ? Vec3(g.velocity[idx] / m) : Vec3::Zero();
-    if (flip) g.velocity_old[idx] = g.velocity[idx];
+    if (g.flip) g.velocity_old[idx] = g.velocity[idx];
   });
 }
 

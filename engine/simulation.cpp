@@ -34,11 +34,6 @@ Simulation::Simulation(const SceneDesc& scene)
 
 namespace {
 
-/// Bytes of node state per grid node (mass, velocity, and force and old velocity for FLIP).
-double bytes_per_node(const SceneDesc& s) {
-  return sizeof(Real) + sizeof(Vec3) + (s.simulation.transfer == Transfer::flip ? 2 * sizeof(Vec3) : 0);
-}
-
 /// Throws SceneError if `bytes` cannot fit in this machine's memory.
 void check_memory(double bytes, const FileLoc& loc, const std::string& key, const std::string& what) {
   const double have = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE);
@@ -54,8 +49,11 @@ void check_memory(double bytes, const FileLoc& loc, const std::string& key, cons
 
 std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
                                                const MaterialRegistry& registry) {
-  const Vec3 nodes = (scene.grid.dims + Vec3i::Ones()).cast<Real>();
-  check_memory(nodes.prod() * bytes_per_node(scene), scene.grid.loc, "grid.dims",
+  // The grid's node storage follows the particles; its page table (one int per 4^3-node
+  // block) covers the whole domain.
+  const Vec3 blocks = (scene.grid.dims + Vec3i::Constant(Grid::kBlockEdge))
+                          .cast<Real>() / Grid::kBlockEdge;
+  check_memory(blocks.prod() * sizeof(std::int32_t), scene.grid.loc, "grid.dims",
                "the grid of " + std::to_string(scene.grid.dims.x()) + " x " +
                    std::to_string(scene.grid.dims.y()) + " x " +
                    std::to_string(scene.grid.dims.z()) + " cells");

@@ -13,6 +13,31 @@ namespace {
 /// whose stencil base lies in slab s writes nodes up to W (s + 1) - 1 + (N - 1) < W (s + 2).
 int slab_width(Kernel k) { return std::max(2, kernel_nodes(k) - 1); }
 
+/// Gives storage to the grid blocks that hold a node of some particle's stencil: every
+/// non-empty cell (counts is the prefix sum over the cells of the box lo + [0, ext)) marks the
+/// blocks of its N^3 nodes.
+template <Kernel K>
+void activate_touched_blocks(const ParticleOrder& ord, const Vec3i& lo, const Vec3i& ext,
+                             Grid& grid) {
+  constexpr int N = KernelTraits<K>::kNodes, B = Grid::kBlockBits;
+  grid.release_blocks();
+  std::size_t c = 0;
+  for (int x = 0; x < ext.x(); ++x)
+    for (int y = 0; y < ext.y(); ++y)
+      for (int z = 0; z < ext.z(); ++z, ++c) {
+        if (ord.counts[c + 1] == ord.counts[c]) continue;
+        const Vec3i first = lo + Vec3i(x, y, z), last = first + Vec3i::Constant(N - 1);
+        for (int bi = first.x() >> B; bi <= last.x() >> B; ++bi)
+          for (int bj = first.y() >> B; bj <= last.y() >> B; ++bj)
+            for (int bk = first.z() >> B; bk <= last.z() >> B; ++bk)
+              grid.slot[(static_cast<std::size_t>(bi) * grid.blocks.y() + bj) * grid.blocks.z() +
+                        bk] = 0;
+      }
+  const Vec3i hi = lo + ext - Vec3i::Ones() + Vec3i::Constant(N - 1);
+  grid.activate_blocks(Vec3i(lo.x() >> B, lo.y() >> B, lo.z() >> B),
+                       Vec3i(hi.x() >> B, hi.y() >> B, hi.z() >> B));
+}
+
 /// The counting sort of sort_particles for kernel K (dispatched once, not per particle).
 template <Kernel K>
 void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
@@ -41,6 +66,7 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
     ++ord.counts[keys[i] + 1];
   }
   for (std::size_t c = 1; c <= cells; ++c) ord.counts[c] += ord.counts[c - 1];
+  activate_touched_blocks<K>(ord, lo, ext, grid);
   const int width = slab_width(K);
   const int slabs = (ext.x() + width - 1) / width;
   ord.slab_start.resize(slabs + 1);
@@ -58,6 +84,8 @@ void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder
   ord.order.resize(p.size());
   if (p.size() == 0) {
     grid.active = NodeRange{};
+    grid.release_blocks();
+    grid.activate_blocks(Vec3i::Zero(), -Vec3i::Ones());
     ord.slab_start.assign(1, 0);
     return;
   }
@@ -82,11 +110,14 @@ void scatter_particle(const Particles& p, std::uint32_t q, Real dt, Grid& g) {
     c = mC * g.h.asDiagonal();
   }
   const Mat3 S = (kImpulse ? dt : Real(1)) * to_real(p.stress[q]);
+  std::size_t nodes[N * N * N];
+  g.stencil_indices<N>(s.base, nodes);
+  const std::size_t* node = nodes;
   for (int i = 0; i < N; ++i)
     for (int j = 0; j < N; ++j) {
       const Vec3 a_ij = a + i * c.col(0) + j * c.col(1);
       for (int k = 0; k < N; ++k) {
-        const std::size_t idx = g.index(s.base.x() + i, s.base.y() + j, s.base.z() + k);
+        const std::size_t idx = *node++;
         const Real w = s.weight(i, j, k);
         const Vec3 f = S * s.gradient(i, j, k);
         g.mass[idx] += w * m;
@@ -115,12 +146,10 @@ void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt, Grid& g)
 
 void particles_to_grid(const Particles& p, const ParticleOrder& ord, Transfer transfer,
                        Kernel kernel, Real dt, Grid& g) {
-  const bool impulse = transfer != Transfer::flip;
-  for_each_active_node(g, [&](int, int, int, std::size_t idx) {
-    g.mass[idx] = 0;
-    g.velocity[idx].setZero();
-    if (!impulse) g.force[idx].setZero();
-  });
+  // The node arrays hold exactly the active blocks.
+  std::fill(g.mass.begin(), g.mass.end(), Real(0));
+  std::fill(g.velocity.begin(), g.velocity.end(), Vec3::Zero());
+  std::fill(g.force.begin(), g.force.end(), Vec3::Zero());
   dispatch_kernel(kernel, [&]<Kernel K>() {
     switch (transfer) {
       case Transfer::apic: scatter_all<K, true, true>(p, ord, dt, g); break;
@@ -148,11 +177,13 @@ void gather_all(const Grid& g, Real flip_blend, Real dt, Particles& p) {
     const Vec3 corner = g.position(s.base.x(), s.base.y(), s.base.z()) - p.x[q];
     NodeVel vel, dvel;
     NodeKernel W;
+    std::size_t nodes[kStencil];
+    g.template stencil_indices<N>(s.base, nodes);
     int c = 0;
     for (int i = 0; i < N; ++i)
       for (int j = 0; j < N; ++j)
         for (int k = 0; k < N; ++k, ++c) {
-          const std::size_t idx = g.index(s.base.x() + i, s.base.y() + j, s.base.z() + k);
+          const std::size_t idx = nodes[c];
           const Real w = s.weight(i, j, k);
           vel.col(c) = g.velocity[idx];
           if constexpr (kTransfer == Transfer::flip) dvel.col(c) = g.velocity[idx] - g.velocity_old[idx];

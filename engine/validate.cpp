@@ -29,7 +29,9 @@ std::vector<std::pair<std::size_t, std::size_t>> overlapping_objects(const Simul
   std::vector<char> seen(sim.objects().size() * sim.objects().size(), 0);
   for (std::size_t q = 0; q < p.size(); ++q) {
     const Vec3 c = (p.x[q] - g.origin).cwiseProduct(g.inv_h);
-    const std::size_t key = g.index(int(c.x()), int(c.y()), int(c.z()));
+    const std::size_t key =
+        (static_cast<std::size_t>(c.x()) * g.nodes.y() + std::size_t(c.y())) * g.nodes.z() +
+        std::size_t(c.z());
     auto [it, added] = owner.emplace(key, p.object[q]);
     if (added || it->second == p.object[q]) continue;
     const std::size_t a = std::min(it->second, p.object[q]), b = std::max(it->second, p.object[q]);

@@ -63,9 +63,8 @@ Real apply_walls(const std::vector<WallPlane>& planes, Real time, Grid& g) {
     placed.push_back({w.point + w.offset(time), w.velocity_at(time)});
     moving = moving || placed.back().velocity.squaredNorm() > 0;
   }
-  // Work per x slice, summed in order afterwards so the total is the same for any thread count.
-  const NodeRange r = g.active;
-  std::vector<Real> work(std::max(0, r.hi.x() - r.lo.x() + 1), 0);
+  // Work per block, summed in order afterwards so the total is the same for any thread count.
+  std::vector<Real> work(g.active_blocks(), 0);
   for_each_active_node(g, [&](int i, int j, int k, std::size_t idx) {
     if (g.mass[idx] <= 0) return;
     const Vec3 x = g.position(i, j, k);
@@ -81,7 +80,7 @@ Real apply_walls(const std::vector<WallPlane>& planes, Real time, Grid& g) {
       v = after;
     }
     g.velocity[idx] = v;
-    work[i - r.lo.x()] += node_work;
+    work[idx / Grid::kBlockNodes] += node_work;
   });
   Real total = 0;
   for (Real w : work) total += w;

@@ -25,10 +25,7 @@ struct Watchdog : Observer {
     for (std::size_t q = 0; q < p.size(); ++q)
       finite = finite && p.x[q].allFinite() && p.v[q].allFinite() && p.F[q].allFinite();
     const Grid& g = sim.grid();
-    for (int i = g.active.lo.x(); i <= g.active.hi.x(); ++i)
-      for (int j = g.active.lo.y(); j <= g.active.hi.y(); ++j)
-        for (int k = g.active.lo.z(); k <= g.active.hi.z(); ++k)
-          finite = finite && g.velocity[g.index(i, j, k)].allFinite();
+    for (const Vec3& v : g.velocity) finite = finite && v.allFinite();
     positions.push_back(p.x);
     Vec3 m = Vec3::Zero();
     for (std::size_t q = 0; q < p.size(); ++q) m += p.mass(q) * p.v[q];

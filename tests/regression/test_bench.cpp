@@ -2,6 +2,7 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <cmath>
 
 #include "engine/bench.h"
 
@@ -32,6 +33,25 @@ TEST_CASE("bench reports particles, rates and the stages each case runs", "[regr
   const std::string table = format_bench_table(results);
   CHECK(table.find("jello") != std::string::npos);
   CHECK(format_bench_csv(results).find("snow") != std::string::npos);
+}
+
+TEST_CASE("bench: the sparse case stores the same grid nodes in an 8 times larger domain",
+          "[regression]") {
+  // The grid keeps storage only for the blocks the particles touch (engine/grid.h).
+  BenchOptions opt;
+  opt.cases = {"jello", "sparse"};
+  opt.particles = 3000;
+  opt.substeps = 2;
+  opt.repeats = 1;
+  const std::vector<BenchResult> r = run_benchmarks(opt);
+  REQUIRE(r.size() == 2);
+  CHECK(r[1].grid_nodes > 6 * r[0].grid_nodes);
+  CHECK(r[1].stored_nodes > 0);
+  // The same cube in both: a x a x a blocks in the tight grid, and at most one block more per
+  // axis where the larger grid's block boundaries cut it differently.
+  const double a = std::cbrt(static_cast<double>(r[0].stored_nodes) / 64);
+  CHECK(r[1].stored_nodes <= 64 * std::pow(a + 1, 3) + 0.5);
+  CHECK(r[1].stored_nodes < r[1].grid_nodes / 4);
 }
 
 TEST_CASE("bench refuses an unknown case with the list of cases", "[regression]") {

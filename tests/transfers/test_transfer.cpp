@@ -51,14 +51,17 @@ struct GridTotals {
 /// Totals over the grid while `velocity` still holds momentum (right after the scatter).
 GridTotals grid_totals_of_momentum(const Grid& g) {
   GridTotals t;
-  for (int i = g.active.lo.x(); i <= g.active.hi.x(); ++i)
-    for (int j = g.active.lo.y(); j <= g.active.hi.y(); ++j)
-      for (int k = g.active.lo.z(); k <= g.active.hi.z(); ++k) {
-        const std::size_t idx = g.index(i, j, k);
-        t.mass += g.mass[idx];
-        t.momentum += g.velocity[idx];
-        t.angular += g.position(i, j, k).cross(g.velocity[idx]);
-      }
+  for (std::size_t b = 0; b < g.active_blocks(); ++b) {  // serial: a fixed summation order
+    std::size_t idx = b * Grid::kBlockNodes;
+    const Vec3i o = g.block_first[b];
+    for (int i = o.x(); i < o.x() + Grid::kBlockEdge; ++i)
+      for (int j = o.y(); j < o.y() + Grid::kBlockEdge; ++j)
+        for (int k = o.z(); k < o.z() + Grid::kBlockEdge; ++k, ++idx) {
+          t.mass += g.mass[idx];
+          t.momentum += g.velocity[idx];
+          t.angular += g.position(i, j, k).cross(g.velocity[idx]);
+        }
+  }
   return t;
 }
 
