@@ -44,12 +44,16 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
   const std::size_t n = p.size();
   const auto base = [&](std::size_t i) { return stencil_base<K>(p.x[i], grid.origin, grid.inv_h); };
   // Bounds of the stencil bases: the active nodes are [lo, hi + N - 1].
-  Vec3i lo = Vec3i::Constant(1 << 30), hi = Vec3i::Constant(-(1 << 30));
-  for (std::size_t i = 0; i < n; ++i) {
+  int lx = 1 << 30, ly = 1 << 30, lz = 1 << 30, hx = -(1 << 30), hy = hx, hz = hx;
+  const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(static) reduction(min : lx, ly, lz) \
+    reduction(max : hx, hy, hz) if (count >= kParallelMinItems)
+  for (std::ptrdiff_t i = 0; i < count; ++i) {
     const Vec3i b = base(i);
-    lo = lo.cwiseMin(b);
-    hi = hi.cwiseMax(b);
+    lx = std::min(lx, b.x()), ly = std::min(ly, b.y()), lz = std::min(lz, b.z());
+    hx = std::max(hx, b.x()), hy = std::max(hy, b.y()), hz = std::max(hz, b.z());
   }
+  const Vec3i lo(lx, ly, lz), hi(hx, hy, hz);
   const Vec3i ext = hi - lo + Vec3i::Ones();
   grid.active.lo = lo;
   grid.active.hi = hi + Vec3i::Constant(KernelTraits<K>::kNodes - 1);
@@ -59,12 +63,13 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
   ord.counts.assign(cells + 1, 0);
   std::vector<std::uint32_t>& keys = ord.keys;  // reused: no allocation per substep
   keys.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
+#pragma omp parallel for schedule(static) if (count >= kParallelMinItems)
+  for (std::ptrdiff_t i = 0; i < count; ++i) {
     const Vec3i b = base(i) - lo;
     keys[i] = static_cast<std::uint32_t>((static_cast<std::size_t>(b.x()) * ext.y() + b.y()) *
                                              ext.z() + b.z());
-    ++ord.counts[keys[i] + 1];
   }
+  for (std::size_t i = 0; i < n; ++i) ++ord.counts[keys[i] + 1];
   for (std::size_t c = 1; c <= cells; ++c) ord.counts[c] += ord.counts[c - 1];
   activate_touched_blocks<K>(ord, lo, ext, grid);
   const int width = slab_width(K);
