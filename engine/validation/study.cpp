@@ -265,13 +265,14 @@ std::string setting_label(const StudyRow& r) {
 std::string study_csv(const std::vector<StudyRow>& rows) {
   std::ostringstream s;
   s.precision(9);
-  s << "experiment,case,kernel,h,ppc,sampling,cfl,dt,transfer,status,error_name,error,particles,substeps,"
-       "particle_steps,wall_seconds,particle_steps_per_second,peak_rss_mb,measures\n";
+  s << "experiment,case,kernel,h,ppc,sampling,cfl,dt,transfer,precision,status,error_name,error,"
+       "particles,substeps,particle_steps,wall_seconds,particle_steps_per_second,peak_rss_mb,"
+       "measures\n";
   for (const StudyRow& r : rows) {
     const Outcome& o = r.outcome;
     const double steps = static_cast<double>(o.particles) * o.substeps;
     s << r.experiment << ',' << r.case_name << ',' << r.kernel << ',' << r.h << ',' << r.ppc << ','
-      << r.sampling << ',' << r.cfl << ',' << r.dt << ',' << r.transfer << ',' << o.status << ",\"" << o.error_name
+      << r.sampling << ',' << r.cfl << ',' << r.dt << ',' << r.transfer << ',' << kStoredPrecision << ',' << o.status << ",\"" << o.error_name
       << "\"," << o.error << ',' << o.particles << ',' << o.substeps << ',' << steps << ','
       << o.seconds << ',' << (o.seconds > 0 ? steps / o.seconds : 0) << ','
       << r.peak_rss_bytes / 1e6 << ",\"";
