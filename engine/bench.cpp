@@ -14,6 +14,7 @@
 #include "engine/load_scene.h"
 #include "engine/run.h"
 #include "engine/simulation.h"
+#include "engine/version.h"
 
 namespace mpm {
 
@@ -157,7 +158,7 @@ std::string format_bench_table(const std::vector<BenchResult>& results) {
   std::ostringstream s;
   char line[512];
   std::snprintf(line, sizeof line, "mpm bench  (particle matrices stored in %s, arithmetic in double; commit %s)\n",
-                kStoredPrecision, MPM_GIT_COMMIT);
+                kStoredPrecision, git_commit());
   s << line;
   std::snprintf(line, sizeof line, "%-9s %10s %10s %10s %8s %7s %14s %10s\n", "case",
                 "particles", "nodes", "stored", "substeps", "threads", "Mparticle-st/s",
@@ -189,7 +190,7 @@ std::string format_bench_csv(const std::vector<BenchResult>& results) {
   for (const BenchResult& r : results)
     for (const auto& [n, v] : r.stage_ns)
       s << r.name << ',' << r.particles << ',' << r.grid_nodes << ',' << r.stored_nodes << ','
-        << r.substeps << ',' << r.threads << ',' << kStoredPrecision << ',' << MPM_GIT_COMMIT
+        << r.substeps << ',' << r.threads << ',' << kStoredPrecision << ',' << git_commit()
         << ',' << r.particle_steps_per_second << ',' << r.peak_rss_bytes_per_particle << ',' << n
         << ',' << v << '\n';
   return s.str();

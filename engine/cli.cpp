@@ -24,6 +24,7 @@
 #include "engine/simulation.h"
 #include "engine/summary.h"
 #include "engine/validate.h"
+#include "engine/version.h"
 #include "materials/plugin.h"
 
 namespace {
@@ -117,7 +118,7 @@ Args parse_args(int argc, char** argv) {
       std::fputs(kUsage, stdout);
       std::exit(mpm::kExitOk);
     } else if (w == "--version") {
-      std::printf("mpm %s (commit %s)\n", MPM_VERSION, MPM_GIT_COMMIT);
+      std::printf("mpm %s (commit %s)\n", MPM_VERSION, mpm::git_commit());
       std::exit(mpm::kExitOk);
     } else if (w == "--out") {
       a.out = value();
