@@ -16,7 +16,7 @@ void Grid::activate_blocks(const Vec3i& lo, const Vec3i& hi) {
   for (int bi = lo.x(); bi <= hi.x(); ++bi)
     for (int bj = lo.y(); bj <= hi.y(); ++bj)
       for (int bk = lo.z(); bk <= hi.z(); ++bk) {
-        std::int32_t& s = slot[(static_cast<std::size_t>(bi) * blocks.y() + bj) * blocks.z() + bk];
+        std::int32_t& s = slot[page(bi, bj, bk)];
         if (s < 0) continue;
         s = static_cast<std::int32_t>(block_first.size());
         block_first.emplace_back(bi * kBlockEdge, bj * kBlockEdge, bk * kBlockEdge);
@@ -31,7 +31,8 @@ void Grid::activate_blocks(const Vec3i& lo, const Vec3i& hi) {
 }
 
 void Grid::release_blocks() {
-  for (const Vec3i& f : block_first) slot[block_of(f.x(), f.y(), f.z())] = -1;
+  for (const Vec3i& f : block_first)
+    slot[page(f.x() / kBlockEdge, f.y() / kBlockEdge, f.z() / kBlockEdge)] = -1;
   block_first.clear();
 }
 

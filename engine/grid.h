@@ -1,6 +1,7 @@
 #pragma once
 /// \file The background grid: sparse 4^3-node blocks where the particles are.
 
+#include <cassert>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -9,12 +10,6 @@
 #include "engine/scene_desc.h"
 
 namespace mpm {
-
-/// A box of node indices [lo, hi] (inclusive) that the current particles touch.
-struct NodeRange {
-  Vec3i lo{0, 0, 0};   ///< First node per axis.
-  Vec3i hi{-1, -1, -1};///< Last node per axis.
-};
 
 /// Grid node state, stored sparsely: only the 4 x 4 x 4-node blocks the particles' stencils
 /// touch in this substep have storage, so memory and time follow the particles, not the box.
@@ -32,7 +27,6 @@ struct Grid {
   Vec3 inv_h;         ///< 1 / h.
   Vec3i nodes;        ///< Nodes per axis (cells + 1).
   int buffer = 3;     ///< Boundary cells particles never enter.
-  NodeRange active;   ///< Bounding box of the nodes the particles touch this substep.
   Vec3i blocks;       ///< Blocks per axis covering the nodes.
   bool flip = false;  ///< True if force and velocity_old are kept (FLIP only).
 
@@ -46,11 +40,9 @@ struct Grid {
 
   /// A grid for `desc`; `flip` keeps velocity_old and force, which only FLIP uses.
   Grid(const GridDesc& desc, bool flip);
-  /// Storage index of node (i, j, k); its block must be active.
-  std::size_t index(int i, int j, int k) const {
-    constexpr int m = kBlockEdge - 1;
-    return static_cast<std::size_t>(slot[block_of(i, j, k)]) * kBlockNodes +
-           (((i & m) << (2 * kBlockBits)) | ((j & m) << kBlockBits) | (k & m));
+  /// Page-table entry of block (bi, bj, bk).
+  std::size_t page(int bi, int bj, int bk) const {
+    return (static_cast<std::size_t>(bi) * blocks.y() + bj) * blocks.z() + bk;
   }
   /// Storage indices of the N^3 nodes from `base` (k fastest), whose blocks must be active:
   /// one page-table lookup per block (at most two per axis), not one per node.
@@ -69,21 +61,17 @@ struct Grid {
     for (int di = 0; di <= blk[0][N - 1]; ++di)
       for (int dj = 0; dj <= blk[1][N - 1]; ++dj)
         for (int dk = 0; dk <= blk[2][N - 1]; ++dk)
-          first[di][dj][dk] =
-              static_cast<std::size_t>(
-                  slot[(static_cast<std::size_t>(b0.x() + di) * blocks.y() + b0.y() + dj) *
-                           blocks.z() + b0.z() + dk]) * kBlockNodes;
+        {
+          const std::int32_t s = slot[page(b0.x() + di, b0.y() + dj, b0.z() + dk)];
+          assert(s >= 0 && "the sort activates every block a stencil touches");
+          first[di][dj][dk] = static_cast<std::size_t>(s) * kBlockNodes;
+        }
     int c = 0;
     for (int i = 0; i < N; ++i)
       for (int j = 0; j < N; ++j)
         for (int k = 0; k < N; ++k)
           out[c++] = first[blk[0][i]][blk[1][j]][blk[2][k]] +
                      ((off[0][i] << (2 * kBlockBits)) | (off[1][j] << kBlockBits) | off[2][k]);
-  }
-  /// Page-table entry of the block holding node (i, j, k).
-  std::size_t block_of(int i, int j, int k) const {
-    return (static_cast<std::size_t>(i >> kBlockBits) * blocks.y() + (j >> kBlockBits)) *
-               blocks.z() + (k >> kBlockBits);
   }
   /// World position of node (i, j, k), m.
   Vec3 position(int i, int j, int k) const {

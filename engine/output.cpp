@@ -224,6 +224,8 @@ void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, 
     }
     write_attribute(f.id, "time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, static_cast<double>(sim.time()));
     write_attribute(f.id, "frame", H5T_STD_I32LE, H5T_NATIVE_INT, frame);
+    write_attribute(f.id, "stored_real_bytes", H5T_STD_I32LE, H5T_NATIVE_INT,
+                    static_cast<int>(sizeof(StoredReal)));
     write_attribute(f.id, "substeps", H5T_STD_U64LE, H5T_NATIVE_ULLONG,
                     static_cast<unsigned long long>(sim.substeps()));
     check(H5Fflush(f.id, H5F_SCOPE_GLOBAL), "checkpoint");
@@ -235,6 +237,14 @@ int restore_checkpoint(const std::filesystem::path& file, Simulation& sim) {
   quiet_hdf5();
   H5Handle f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
   if (f.id < 0) throw std::runtime_error("cannot open checkpoint '" + file.string() + "'");
+  // A float build's F and C would be widened or rounded by a double build and the other way
+  // round: not the run that was stopped, so refuse.
+  const int bytes = read_attribute<int>(f.id, "stored_real_bytes", H5T_NATIVE_INT);
+  if (bytes != static_cast<int>(sizeof(StoredReal)))
+    throw std::runtime_error("checkpoint '" + file.string() + "' was written by a build storing " +
+                             "particle matrices in " + (bytes == 4 ? "float" : "double") +
+                             "; this build stores them in " + kStoredPrecision +
+                             " (CMake option MPM_DOUBLE_PARTICLES)");
   Particles& p = sim.particles();
   read_rows(f.id, "x", p.x, 3);
   read_rows(f.id, "v", p.v, 3);

@@ -49,14 +49,19 @@ void check_memory(double bytes, const FileLoc& loc, const std::string& key, cons
 
 std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
                                                const MaterialRegistry& registry) {
-  // The grid's node storage follows the particles; its page table (one int per 4^3-node
-  // block) covers the whole domain.
+  // The grid's node storage follows the particles. What covers the domain: its page table (one
+  // int per 4^3-node block), and at worst the sort's count per cell of the particles' box.
   const Vec3 blocks = (scene.grid.dims + Vec3i::Constant(Grid::kBlockEdge))
                           .cast<Real>() / Grid::kBlockEdge;
-  check_memory(blocks.prod() * sizeof(std::int32_t), scene.grid.loc, "grid.dims",
-               "the grid of " + std::to_string(scene.grid.dims.x()) + " x " +
-                   std::to_string(scene.grid.dims.y()) + " x " +
-                   std::to_string(scene.grid.dims.z()) + " cells");
+  const double cells = scene.grid.dims.cast<double>().prod();
+  const std::string grid_name = "the grid of " + std::to_string(scene.grid.dims.x()) + " x " +
+                                std::to_string(scene.grid.dims.y()) + " x " +
+                                std::to_string(scene.grid.dims.z()) + " cells";
+  check_memory((blocks.prod() + cells) * sizeof(std::int32_t), scene.grid.loc, "grid.dims",
+               grid_name);
+  if (cells >= 4294967296.0)  // the sort's cell keys are 32-bit
+    throw SceneError(scene.grid.loc, "grid.dims",
+                     grid_name + " has more than 2^32 cells, the most the sort can key");
   std::unique_ptr<Simulation> sim(new Simulation(scene));
   Particles& P = sim->particles_;
   const Vec3 h = scene.grid.spacing();
@@ -118,7 +123,7 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     const MaterialInfo* mat = registry.find(od.material);
     if (!mat) throw SceneError(od.loc, key + ".material", "unknown material '" + od.material + "'");
     sim->materials_.push_back(
-        {info.first, n, mat->create(od.params, GroupInfo{density, n}), v0});
+        {info.first, n, mat->create(od.params, GroupInfo{density, n})});
     sim->objects_.push_back(info);
   }
   P.stress.assign(P.size(), StoredMat3::Zero());
@@ -136,8 +141,8 @@ void Simulation::build_stages() {
   add("sort", [this](Real) { sort_particles(particles_, scene_.simulation.kernel, grid_, order_); });
   add("compute_stress", [this](Real) {
     for (auto& m : materials_)
-      m.material->compute_stress(slice(std::as_const(particles_.F), m), m.volume0,
-                                 slice(particles_.stress, m));
+      m.material->compute_stress(slice(std::as_const(particles_.F), m),
+                                 particles_.volume0(m.first), slice(particles_.stress, m));
   });
   add("particles_to_grid",
       [this](Real dt) {
@@ -240,7 +245,7 @@ std::size_t Simulation::fastest_particle() const {
 Real Simulation::elastic_energy() const {
   Real e = 0;
   for (const auto& m : materials_)
-    e += m.material->elastic_energy(slice(particles_.F, m), m.volume0);
+    e += m.material->elastic_energy(slice(particles_.F, m), particles_.volume0(m.first));
   return e;
 }
 

@@ -30,7 +30,6 @@ struct MaterialRange {
   std::size_t first = 0;                     ///< First particle index.
   std::size_t count = 0;                     ///< Number of particles.
   std::unique_ptr<MaterialGroup> material;   ///< Built by the registry.
-  Real volume0 = 0;                          ///< Reference volume of each particle, m^3.
 };
 
 /// A named step of the substep, with the time it has taken so far.

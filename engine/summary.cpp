@@ -79,7 +79,7 @@ FrameSummary summarize(const Simulation& sim, int frame) {
     double elastic = 0;
     for (const MaterialRange& r : sim.materials()) {
       if (r.count == 0 || !r.material || r.first < o.first || r.first + r.count > end) continue;
-      elastic += r.material->elastic_energy(F.subspan(r.first, r.count), r.volume0);
+      elastic += r.material->elastic_energy(F.subspan(r.first, r.count), p.volume0(r.first));
     }
     s.elastic_energy = elastic;
     out.objects.push_back(std::move(s));

@@ -30,8 +30,7 @@ void activate_touched_blocks(const ParticleOrder& ord, const Vec3i& lo, const Ve
         for (int bi = first.x() >> B; bi <= last.x() >> B; ++bi)
           for (int bj = first.y() >> B; bj <= last.y() >> B; ++bj)
             for (int bk = first.z() >> B; bk <= last.z() >> B; ++bk)
-              grid.slot[(static_cast<std::size_t>(bi) * grid.blocks.y() + bj) * grid.blocks.z() +
-                        bk] = 0;
+              grid.slot[grid.page(bi, bj, bk)] = 0;
       }
   const Vec3i hi = lo + ext - Vec3i::Ones() + Vec3i::Constant(N - 1);
   grid.activate_blocks(Vec3i(lo.x() >> B, lo.y() >> B, lo.z() >> B),
@@ -55,8 +54,6 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
   }
   const Vec3i lo(lx, ly, lz), hi(hx, hy, hz);
   const Vec3i ext = hi - lo + Vec3i::Ones();
-  grid.active.lo = lo;
-  grid.active.hi = hi + Vec3i::Constant(KernelTraits<K>::kNodes - 1);
 
   // Counting sort by base cell inside the active box (x slowest).
   const std::size_t cells = static_cast<std::size_t>(ext.x()) * ext.y() * ext.z();
@@ -88,7 +85,6 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
 void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& ord) {
   ord.order.resize(p.size());
   if (p.size() == 0) {
-    grid.active = NodeRange{};
     grid.release_blocks();
     grid.activate_blocks(Vec3i::Zero(), -Vec3i::Ones());
     ord.slab_start.assign(1, 0);
@@ -99,12 +95,28 @@ void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder
 
 namespace {
 
-/// Scatters particle q. With kImpulse the stress force enters the momentum as the impulse
-/// dt f; otherwise (FLIP, which needs the velocity before forces) it goes to g.force.
+/// The sums over the N^3 nodes of one stencil base cell, accumulated for all the particles
+/// of that cell before one write to the grid (kForce: FLIP's separate force).
+template <int N, bool kForce>
+struct CellSums {
+  static constexpr int kNodes = N * N * N;  ///< Nodes of the stencil.
+  Real mass[kNodes] = {};                   ///< Mass per node.
+  Vec3 momentum[kNodes];                    ///< Momentum (with the impulse unless kForce).
+  Vec3 force[kForce ? kNodes : 1];          ///< Stress force (FLIP only).
+  CellSums() {
+    for (Vec3& v : momentum) v.setZero();
+    for (Vec3& f : force) f.setZero();
+  }
+};
+
+/// Adds particle q, whose stencil is `s`, to its cell's sums. With kImpulse the stress force
+/// enters the momentum as the impulse dt f; otherwise (FLIP, which needs the velocity before
+/// forces) it is summed apart.
 template <Kernel K, bool kApic, bool kImpulse>
-void scatter_particle(const Particles& p, std::uint32_t q, Real dt, Grid& g) {
+void scatter_particle(const Particles& p, std::uint32_t q, Real dt, const Grid& g,
+                      const Stencil<KernelTraits<K>::kNodes>& s,
+                      CellSums<KernelTraits<K>::kNodes, !kImpulse>& sums) {
   constexpr int N = KernelTraits<K>::kNodes;
-  const auto s = make_stencil<K>(p.x[q], g.origin, g.inv_h);
   const Real m = p.mass(q);
   // Momentum at node (i, j, k): m v + m C (corner + (i, j, k) h) = a + i c0 + j c1 + k c2.
   Vec3 a = m * p.v[q];
@@ -115,25 +127,59 @@ void scatter_particle(const Particles& p, std::uint32_t q, Real dt, Grid& g) {
     c = mC * g.h.asDiagonal();
   }
   const Mat3 S = (kImpulse ? dt : Real(1)) * to_real(p.stress[q]);
-  std::size_t nodes[N * N * N];
-  g.stencil_indices<N>(s.base, nodes);
-  const std::size_t* node = nodes;
+  // Weights are products w0[i] w1[j] w2[k]. Per (i, j) row, with w01 = w0[i] w1[j]:
+  //   momentum  w2[k] w01 a_ij + k w2[k] w01 c2,    a_ij = a + i c0 + j c1,
+  //   force     w2[k] (dw0[i] w1[j] S0 + w0[i] dw1[j] S1) + dw2[k] w01 S2   (S grad w).
+  int n = 0;
   for (int i = 0; i < N; ++i)
     for (int j = 0; j < N; ++j) {
-      const Vec3 a_ij = a + i * c.col(0) + j * c.col(1);
-      for (int k = 0; k < N; ++k) {
-        const std::size_t idx = *node++;
-        const Real w = s.weight(i, j, k);
-        const Vec3 f = S * s.gradient(i, j, k);
-        g.mass[idx] += w * m;
+      const Real w01 = s.w[0][i] * s.w[1][j];
+      const Vec3 mom = w01 * (a + i * c.col(0) + j * c.col(1));
+      const Vec3 mom_k = w01 * c.col(2);
+      const Vec3 f_w = s.dw[0][i] * s.w[1][j] * S.col(0) + s.w[0][i] * s.dw[1][j] * S.col(1);
+      const Vec3 f_dw = w01 * S.col(2);
+      const Real m01 = w01 * m;
+      for (int k = 0; k < N; ++k, ++n) {
+        const Real w2 = s.w[2][k], dw2 = s.dw[2][k];
+        sums.mass[n] += m01 * w2;
+        Vec3 dp = w2 * mom;
+        if constexpr (kApic) dp += (k * w2) * mom_k;
+        const Vec3 f = w2 * f_w + dw2 * f_dw;
         if constexpr (kImpulse) {
-          g.velocity[idx] += w * (a_ij + k * c.col(2)) + f;
+          sums.momentum[n] += dp + f;
         } else {
-          g.velocity[idx] += w * (a_ij + k * c.col(2));
-          g.force[idx] += f;
+          sums.momentum[n] += dp;
+          sums.force[n] += f;
         }
       }
     }
+}
+
+/// Scatters the sorted particles order[begin, end): each run of particles sharing a stencil
+/// base cell is summed locally, then added to the grid's nodes once.
+template <Kernel K, bool kApic, bool kImpulse>
+void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t begin,
+                   std::size_t end, Real dt, Grid& g) {
+  constexpr int N = KernelTraits<K>::kNodes;
+  using Sums = CellSums<N, !kImpulse>;
+  for (std::size_t q = begin; q < end;) {
+    const std::uint32_t cell = ord.keys[ord.order[q]];
+    Sums sums;
+    Vec3i base;
+    for (; q < end && ord.keys[ord.order[q]] == cell; ++q) {
+      const std::uint32_t i = ord.order[q];
+      const auto s = make_stencil<K>(p.x[i], g.origin, g.inv_h);
+      base = s.base;
+      scatter_particle<K, kApic, kImpulse>(p, i, dt, g, s, sums);
+    }
+    std::size_t nodes[Sums::kNodes];
+    g.stencil_indices<N>(base, nodes);
+    for (int n = 0; n < Sums::kNodes; ++n) {
+      g.mass[nodes[n]] += sums.mass[n];
+      g.velocity[nodes[n]] += sums.momentum[n];
+      if constexpr (!kImpulse) g.force[nodes[n]] += sums.force[n];
+    }
+  }
 }
 
 template <Kernel K, bool kApic, bool kImpulse>
@@ -142,8 +188,7 @@ void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt, Grid& g)
   for (int color = 0; color < 2; ++color) {
 #pragma omp parallel for schedule(dynamic, 1) if (ord.order.size() >= kParallelMinItems)
     for (int s = color; s < slabs; s += 2)
-      for (std::size_t q = ord.slab_start[s]; q < ord.slab_start[s + 1]; ++q)
-        scatter_particle<K, kApic, kImpulse>(p, ord.order[q], dt, g);
+      scatter_range<K, kApic, kImpulse>(p, ord, ord.slab_start[s], ord.slab_start[s + 1], dt, g);
   }
 }
 
@@ -151,10 +196,15 @@ void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt, Grid& g)
 
 void particles_to_grid(const Particles& p, const ParticleOrder& ord, Transfer transfer,
                        Kernel kernel, Real dt, Grid& g) {
-  // The node arrays hold exactly the active blocks.
-  std::fill(g.mass.begin(), g.mass.end(), Real(0));
-  std::fill(g.velocity.begin(), g.velocity.end(), Vec3::Zero());
-  std::fill(g.force.begin(), g.force.end(), Vec3::Zero());
+  // The node arrays hold exactly the active blocks; clear all of them, padding included (a
+  // slot may have held another block before).
+  const std::ptrdiff_t nodes = static_cast<std::ptrdiff_t>(g.mass.size());
+#pragma omp parallel for schedule(static) if (nodes >= kParallelMinItems)
+  for (std::ptrdiff_t i = 0; i < nodes; ++i) {
+    g.mass[i] = 0;
+    g.velocity[i].setZero();
+    if (g.flip) g.force[i].setZero();
+  }
   dispatch_kernel(kernel, [&]<Kernel K>() {
     switch (transfer) {
       case Transfer::apic: scatter_all<K, true, true>(p, ord, dt, g); break;

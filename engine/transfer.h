@@ -19,11 +19,13 @@ struct ParticleOrder {
   std::vector<std::uint32_t> order;     ///< Particle indices sorted by stencil base cell.
   std::vector<std::size_t> slab_start;  ///< order[slab_start[s] .. slab_start[s+1]) is slab s.
   std::vector<std::uint32_t> counts;    ///< Scratch for the counting sort.
-  std::vector<std::uint32_t> keys;      ///< Scratch: each particle's cell key, kept between substeps.
+  std::vector<std::uint32_t> keys;      ///< Each particle's stencil base cell (particles_to_grid
+                                        ///< sums a cell's particles before writing its nodes).
 };
 
-/// Sorts particles by the base cell of `kernel`'s stencil and sets grid.active to the nodes
-/// they touch. Slabs are wide enough for the kernel (2 cells, 3 for cubic).
+/// Sorts particles by the base cell of `kernel`'s stencil and activates the grid blocks their
+/// stencils touch (Grid::activate_blocks). Slabs are wide enough for the kernel (2 cells, 3
+/// for cubic).
 void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& order);
 
 /// Clears the active nodes, then scatters mass, momentum (with the APIC affine term
@@ -31,7 +33,8 @@ void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder
 /// f_i = -sum_p V0 tau_p grad w_ip (Jiang et al. 2016 course notes, eq. 189) to the grid.
 /// For PIC and APIC the force enters the momentum as the impulse dt f_i, so grid_update's
 /// v_i = (m v)_i / m_i is already v_i + dt f_i / m_i. FLIP keeps f_i in grid.force, to be
-/// applied after the velocity before forces is saved.
+/// applied after the velocity before forces is saved. The particles of one stencil base cell
+/// are summed locally and written to their nodes once.
 void particles_to_grid(const Particles& p, const ParticleOrder& order, Transfer transfer,
                        Kernel kernel, Real dt, Grid& grid);
 

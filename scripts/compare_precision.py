@@ -20,7 +20,8 @@ def main(float_csv, double_csv):
         d = doubles.get(tuple(f[k] for k in KEY))
         if d is None:
             continue
-        setting = "%s h=%s ppc=%s %s" % (f["kernel"], f["h"], f["ppc"], f["transfer"])
+        setting = "%s h=%s ppc=%s %s %s" % (f["kernel"], f["h"], f["ppc"], f["sampling"],
+                                             f["transfer"])
         if f["experiment"] == "dt":
             setting += " dt=%s" % f["dt"]
         ratio = float(f["wall_seconds"]) / max(float(d["wall_seconds"]), 1e-12)
