@@ -222,40 +222,53 @@ void gather_all(const Grid& g, Real flip_blend, Real dt, Particles& p) {
   constexpr int kStencil = N * N * N;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
   const Vec3 inv_D = KernelTraits<K>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
-  // Columns of K per node: w, grad w (3), w (x_i - x_p) (3). The sums over the stencil are
-  // then one small matrix product, which keeps the accumulators in registers.
-  using NodeVel = Eigen::Matrix<Real, 3, kStencil>;
-  using NodeKernel = Eigen::Matrix<Real, kStencil, 7>;
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (std::ptrdiff_t q = 0; q < n; ++q) {
     const auto s = make_stencil<K>(p.x[q], g.origin, g.inv_h);
-    const Vec3 corner = g.position(s.base.x(), s.base.y(), s.base.z()) - p.x[q];
-    NodeVel vel, dvel;
-    NodeKernel W;
     std::size_t nodes[kStencil];
     g.template stencil_indices<N>(s.base, nodes);
+    // Weights are products w0[i] w1[j] w2[k]: sum each (i, j) row over k first (r: with w2,
+    // dw2 and k w2), then the rows. Columns of `sums`: v, grad v (3), sum w v (i, j, k)^T (3).
+    Eigen::Matrix<Real, 3, 7> sums = Eigen::Matrix<Real, 3, 7>::Zero();
+    Vec3 dv = Vec3::Zero();  // FLIP: sum w (v - v_old)
     int c = 0;
     for (int i = 0; i < N; ++i)
-      for (int j = 0; j < N; ++j)
+      for (int j = 0; j < N; ++j) {
+        Vec3 r0 = Vec3::Zero(), r1 = Vec3::Zero(), r2 = Vec3::Zero(), rd = Vec3::Zero();
         for (int k = 0; k < N; ++k, ++c) {
-          const std::size_t idx = nodes[c];
-          const Real w = s.weight(i, j, k);
-          vel.col(c) = g.velocity[idx];
-          if constexpr (kTransfer == Transfer::flip) dvel.col(c) = g.velocity[idx] - g.velocity_old[idx];
-          W(c, 0) = w;
-          W.template block<1, 3>(c, 1) = s.gradient(i, j, k).transpose();
-          W.template block<1, 3>(c, 4) = w * (corner + Vec3(i, j, k).cwiseProduct(g.h)).transpose();
+          const Vec3& vi = g.velocity[nodes[c]];
+          r0 += s.w[2][k] * vi;
+          r1 += s.dw[2][k] * vi;
+          if constexpr (kTransfer == Transfer::apic) r2 += (k * s.w[2][k]) * vi;
+          if constexpr (kTransfer == Transfer::flip)
+            rd += s.w[2][k] * (vi - g.velocity_old[nodes[c]]);
         }
-    const Eigen::Matrix<Real, 3, 7> sums = vel.lazyProduct(W);
+        const Real w01 = s.w[0][i] * s.w[1][j];
+        sums.col(0) += w01 * r0;
+        sums.col(1) += (s.dw[0][i] * s.w[1][j]) * r0;
+        sums.col(2) += (s.w[0][i] * s.dw[1][j]) * r0;
+        sums.col(3) += w01 * r1;
+        if constexpr (kTransfer == Transfer::apic) {
+          sums.col(4) += (i * w01) * r0;
+          sums.col(5) += (j * w01) * r0;
+          sums.col(6) += w01 * r2;
+        }
+        if constexpr (kTransfer == Transfer::flip) dv += w01 * rd;
+      }
     const Vec3 v = sums.col(0);
     if constexpr (kTransfer == Transfer::flip)
-      p.v[q] = flip_blend * (p.v[q] + dvel * W.col(0)) + (1 - flip_blend) * v;
+      p.v[q] = flip_blend * (p.v[q] + dv) + (1 - flip_blend) * v;
     else
       p.v[q] = v;
     const Mat3 grad_v = sums.template middleCols<3>(1);
     if constexpr (kTransfer == Transfer::apic) {
       if constexpr (K == Kernel::linear) p.C[q] = to_stored(grad_v);
-      else p.C[q] = to_stored(sums.template rightCols<3>() * inv_D.asDiagonal());
+      else {
+        // B = sum w v (x_i - x_p)^T = v (corner)^T + sum w v (i, j, k)^T diag(h).
+        const Vec3 corner = g.position(s.base.x(), s.base.y(), s.base.z()) - p.x[q];
+        const Mat3 B = v * corner.transpose() + sums.template rightCols<3>() * g.h.asDiagonal();
+        p.C[q] = to_stored(B * inv_D.asDiagonal());
+      }
     }
     // F <- (I + dt grad v) F (Stomakhin et al. 2013, eq. 7 with the elastic part only).
     p.F[q] = to_stored((Mat3::Identity() + dt * grad_v) * to_real(p.F[q]));
