@@ -7,8 +7,10 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 #include <thread>
 
+#include <hdf5.h>
 #include <yaml-cpp/yaml.h>
 
 #include "engine/io/ply.h"
@@ -89,6 +91,35 @@ TEST_CASE("a resumed run equals an uninterrupted one bit for bit", "[regression]
   CHECK(run_mpm("run " + scene.string() + " --frames 1 --quiet --out " + a) == 2);
   CHECK(run_mpm("run " + scene.string() + " --frames 1 --quiet --force --out " + a) == 0);
   CHECK_FALSE(std::filesystem::exists(frame_path(a, 2)));
+}
+
+TEST_CASE("a checkpoint of the other storage precision is refused, not resumed",
+          "[regression]") {
+  const auto dir = test::temp_dir("resume_precision");
+  const auto scene = small_scene(dir);
+  const std::string b = (dir / "b").string();
+  REQUIRE(run_mpm("run " + scene.string() + " --frames 2 --quiet --out " + b) == 0);
+  {  // Mark the checkpoint as written by the other build.
+    const hid_t f = H5Fopen((b + "/checkpoint.h5").c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    REQUIRE(f >= 0);
+    const hid_t attr = H5Aopen(f, "stored_real_bytes", H5P_DEFAULT);
+    REQUIRE(attr >= 0);
+    const int other = sizeof(StoredReal) == 4 ? 8 : 4;
+    CHECK(H5Awrite(attr, H5T_NATIVE_INT, &other) >= 0);
+    H5Aclose(attr);
+    H5Fclose(f);
+  }
+  const std::string log = (dir / "log.txt").string();
+  const int status = std::system((std::string(MPM_BINARY) + " run " + scene.string() +
+                                  " --frames 4 --quiet --resume " + b + " 2> " + log).c_str());
+  REQUIRE(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 2);
+  std::ifstream in(log);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  INFO(text);
+  CHECK(text.find("--resume") != std::string::npos);
+  CHECK(text.find("MPM_DOUBLE_PARTICLES") != std::string::npos);
+  CHECK_FALSE(std::filesystem::exists(frame_path(b, 3)));
 }
 
 TEST_CASE("SIGINT stops a run cleanly: frames whole, report says interrupted", "[regression]") {
