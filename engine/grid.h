@@ -60,8 +60,7 @@ struct Grid {
     std::size_t first[2][2][2];
     for (int di = 0; di <= blk[0][N - 1]; ++di)
       for (int dj = 0; dj <= blk[1][N - 1]; ++dj)
-        for (int dk = 0; dk <= blk[2][N - 1]; ++dk)
-        {
+        for (int dk = 0; dk <= blk[2][N - 1]; ++dk) {
           const std::int32_t s = slot[page(b0.x() + di, b0.y() + dj, b0.z() + dk)];
           assert(s >= 0 && "the sort activates every block a stencil touches");
           first[di][dj][dk] = static_cast<std::size_t>(s) * kBlockNodes;
