@@ -8,13 +8,22 @@
 
 using namespace mpm;
 
-TEST_CASE("bench reports particles, rates and the stages each case runs", "[regression]") {
+namespace {
+
+/// Runs `cases` at 3000 particles for `substeps` substeps, once: seconds, not minutes.
+std::vector<BenchResult> tiny_bench(std::vector<std::string> cases, int substeps) {
   BenchOptions opt;
-  opt.cases = {"jello", "snow"};
+  opt.cases = std::move(cases);
   opt.particles = 3000;
-  opt.substeps = 3;
+  opt.substeps = substeps;
   opt.repeats = 1;
-  const std::vector<BenchResult> results = run_benchmarks(opt);
+  return run_benchmarks(opt);
+}
+
+}  // namespace
+
+TEST_CASE("bench reports particles, rates and the stages each case runs", "[regression]") {
+  const std::vector<BenchResult> results = tiny_bench({"jello", "snow"}, 3);
   REQUIRE(results.size() == 2);
   for (const BenchResult& r : results) {
     INFO(r.name);
@@ -38,12 +47,7 @@ TEST_CASE("bench reports particles, rates and the stages each case runs", "[regr
 TEST_CASE("bench: the sparse case stores the same grid nodes in an 8 times larger domain",
           "[regression]") {
   // The grid keeps storage only for the blocks the particles touch (engine/grid.h).
-  BenchOptions opt;
-  opt.cases = {"jello", "sparse"};
-  opt.particles = 3000;
-  opt.substeps = 2;
-  opt.repeats = 1;
-  const std::vector<BenchResult> r = run_benchmarks(opt);
+  const std::vector<BenchResult> r = tiny_bench({"jello", "sparse"}, 2);
   REQUIRE(r.size() == 2);
   CHECK(r[1].grid_nodes > 6 * r[0].grid_nodes);
   CHECK(r[1].stored_nodes > 0);

@@ -37,9 +37,17 @@ std::filesystem::path small_scene(const std::filesystem::path& dir) {
   return dir / "scene.yaml";
 }
 
-int run_mpm(const std::string& args) {
-  const int status = std::system((std::string(MPM_BINARY) + " " + args + " > /dev/null 2>&1").c_str());
+/// Runs `mpm ARGS` and returns its exit code; its error output goes to `stderr_file` if given.
+int run_mpm(const std::string& args, const std::string& stderr_file = "/dev/null") {
+  const int status = std::system(
+      (std::string(MPM_BINARY) + " " + args + " > /dev/null 2> " + stderr_file).c_str());
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+/// The whole text of `file`.
+std::string read_text(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
 }  // namespace
@@ -62,10 +70,7 @@ TEST_CASE("every output format is written for every frame", "[regression]") {
     CHECK(ply.position == h5.position);
     CHECK(ply.object_id == h5.object_id);
   }
-  const std::string xmf = [&] {
-    std::ifstream in(dir / "out" / "frames.xmf");
-    return std::string(std::istreambuf_iterator<char>(in), {});
-  }();
+  const std::string xmf = read_text(dir / "out" / "frames.xmf");
   CHECK(xmf.find("frame_00002.h5:/position") != std::string::npos);
 }
 
@@ -110,12 +115,8 @@ TEST_CASE("a checkpoint of the other storage precision is refused, not resumed",
     H5Fclose(f);
   }
   const std::string log = (dir / "log.txt").string();
-  const int status = std::system((std::string(MPM_BINARY) + " run " + scene.string() +
-                                  " --frames 4 --quiet --resume " + b + " 2> " + log).c_str());
-  REQUIRE(WIFEXITED(status));
-  CHECK(WEXITSTATUS(status) == 2);
-  std::ifstream in(log);
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  CHECK(run_mpm("run " + scene.string() + " --frames 4 --quiet --resume " + b, log) == 2);
+  const std::string text = read_text(log);
   INFO(text);
   CHECK(text.find("--resume") != std::string::npos);
   CHECK(text.find("MPM_DOUBLE_PARTICLES") != std::string::npos);
