@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "engine/math.h"
+#include "engine/core/math.h"
 
 namespace mpm {
 

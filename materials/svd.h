@@ -16,7 +16,7 @@
 #include <cmath>
 #include <utility>
 
-#include "engine/math.h"
+#include "engine/core/math.h"
 
 namespace mpm {
 

@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "engine/math.h"
+#include "engine/core/math.h"
 
 namespace mpm {
 

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "engine/io/frame_view.h"
-#include "engine/math.h"
+#include "engine/core/math.h"
 
 namespace mpm {
 

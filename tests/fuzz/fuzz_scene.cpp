@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "engine/error.h"
-#include "engine/load_scene.h"
+#include "engine/core/error.h"
+#include "engine/scene/load_scene.h"
 #include "materials/registry.h"
 
 namespace {

@@ -16,7 +16,7 @@
 #include "engine/io/ply.h"
 #include "engine/io/preview.h"
 #include "engine/io/xdmf.h"
-#include "engine/output.h"
+#include "engine/io/output.h"
 #include "support/helpers.h"
 
 using namespace mpm;

@@ -1,7 +1,7 @@
 // Free fall: every particle follows symplectic Euler's exact discrete trajectory.
 #include <catch2/catch.hpp>
 
-#include "engine/run.h"
+#include "engine/run/run.h"
 #include "support/helpers.h"
 
 using namespace mpm;

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "engine/run.h"
+#include "engine/run/run.h"
 #include "support/helpers.h"
 
 using namespace mpm;

@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "engine/bench.h"
+#include "engine/tools/bench.h"
 
 using namespace mpm;
 
@@ -46,7 +46,7 @@ TEST_CASE("bench reports particles, rates and the stages each case runs", "[regr
 
 TEST_CASE("bench: the sparse case stores the same grid nodes in an 8 times larger domain",
           "[regression]") {
-  // The grid keeps storage only for the blocks the particles touch (engine/grid.h).
+  // The grid keeps storage only for the blocks the particles touch (engine/step/grid.h).
   const std::vector<BenchResult> r = tiny_bench({"jello", "sparse"}, 2);
   REQUIRE(r.size() == 2);
   CHECK(r[1].grid_nodes > 6 * r[0].grid_nodes);

@@ -10,8 +10,8 @@
 #include <map>
 #include <sstream>
 
-#include "engine/run.h"
-#include "engine/summary.h"
+#include "engine/run/run.h"
+#include "engine/io/summary.h"
 #include "support/helpers.h"
 
 using namespace mpm;

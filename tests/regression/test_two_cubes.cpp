@@ -7,7 +7,7 @@
 
 #include <yaml-cpp/yaml.h>
 
-#include "engine/output.h"
+#include "engine/io/output.h"
 #include "support/helpers.h"
 
 using namespace mpm;

@@ -3,8 +3,8 @@
 
 #include <fstream>
 
-#include "engine/mesh.h"
-#include "engine/sampling.h"
+#include "engine/scene/mesh.h"
+#include "engine/scene/sampling.h"
 #include "support/helpers.h"
 
 using namespace mpm;

@@ -6,8 +6,8 @@
 #include <random>
 #include <string>
 
-#include "engine/load_scene.h"
-#include "engine/simulation.h"
+#include "engine/scene/load_scene.h"
+#include "engine/step/simulation.h"
 
 namespace mpm::test {
 

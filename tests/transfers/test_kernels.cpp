@@ -4,7 +4,7 @@
 
 #include <random>
 
-#include "engine/kernels.h"
+#include "engine/step/kernels.h"
 
 using namespace mpm;
 

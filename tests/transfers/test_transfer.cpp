@@ -5,8 +5,8 @@
 
 #include <random>
 
-#include "engine/grid.h"
-#include "engine/transfer.h"
+#include "engine/step/grid.h"
+#include "engine/step/transfer.h"
 #include "support/helpers.h"
 
 using namespace mpm;

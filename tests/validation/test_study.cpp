@@ -1,7 +1,7 @@
 // The quick study (`mpm study --quick`): the conclusions that must hold, from its own rows.
 #include <catch2/catch.hpp>
 
-#include "engine/validation/study.h"
+#include "engine/tools/validation/study.h"
 #include "support/helpers.h"
 
 using namespace mpm::validation;

@@ -5,7 +5,7 @@
 
 #include <cmath>
 
-#include "engine/validation/cases.h"
+#include "engine/tools/validation/cases.h"
 #include "support/helpers.h"
 
 using namespace mpm;

@@ -1,0 +1,387 @@
+#include "engine/io/output.h"
+
+#include "engine/io/atomic_file.h"
+
+#include "engine/io/bgeo.h"
+#include "engine/io/ply.h"
+#include "engine/io/preview.h"
+#include "engine/io/xdmf.h"
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <stdexcept>
+#include <type_traits>
+
+#include <hdf5.h>
+#include <algorithm>
+#include <cmath>
+
+#include <yaml-cpp/yaml.h>
+
+namespace mpm {
+
+namespace {
+
+/// Closes an HDF5 handle when it goes out of scope.
+struct H5Handle {
+  hid_t id;
+  herr_t (*close)(hid_t);
+  ~H5Handle() {
+    if (id >= 0) close(id);
+  }
+};
+
+/// Errors are reported through exceptions; keep HDF5 from printing its own error stack.
+void quiet_hdf5() {
+  static const bool done = [] { return H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr) >= 0; }();
+  (void)done;
+}
+
+void check(herr_t status, const std::string& what) {
+  if (status < 0) throw std::runtime_error("HDF5: cannot write " + what);
+}
+
+void write_dataset(hid_t file, const char* name, hid_t file_type, hid_t mem_type, int rank,
+                   const hsize_t* dims, const void* data) {
+  H5Handle space{H5Screate_simple(rank, dims, nullptr), H5Sclose};
+  // No modification times in object headers: the same state gives byte-identical files.
+  H5Handle props{H5Pcreate(H5P_DATASET_CREATE), H5Pclose};
+  H5Pset_obj_track_times(props.id, false);
+  H5Handle set{H5Dcreate2(file, name, file_type, space.id, H5P_DEFAULT, props.id, H5P_DEFAULT),
+               H5Dclose};
+  if (set.id < 0) throw std::runtime_error(std::string("HDF5: cannot create dataset ") + name);
+  if (dims[0] > 0) check(H5Dwrite(set.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), name);
+}
+
+template <class T>
+void write_attribute(hid_t file, const char* name, hid_t file_type, hid_t mem_type, T value) {
+  H5Handle space{H5Screate(H5S_SCALAR), H5Sclose};
+  H5Handle attr{H5Acreate2(file, name, file_type, space.id, H5P_DEFAULT, H5P_DEFAULT), H5Aclose};
+  if (attr.id < 0) throw std::runtime_error(std::string("HDF5: cannot create attribute ") + name);
+  check(H5Awrite(attr.id, mem_type, &value), name);
+}
+
+}  // namespace
+
+std::filesystem::path frame_path(const std::filesystem::path& dir, int frame) {
+  char name[32];
+  std::snprintf(name, sizeof name, "frame_%05d.h5", frame);
+  return dir / name;
+}
+
+void write_frame_hdf5(const std::filesystem::path& file, const Particles& p, Real time,
+                      int frame) {
+  const std::size_t n = p.size();
+  std::vector<float> pos(3 * n), vel(3 * n), J(n);
+  std::vector<int> object(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      pos[3 * i + a] = static_cast<float>(p.x[i][a]);
+      vel[3 * i + a] = static_cast<float>(p.v[i][a]);
+    }
+    J[i] = static_cast<float>(to_real(p.F[i]).determinant());
+    object[i] = static_cast<int>(p.object[i]);
+  }
+  quiet_hdf5();
+  const std::filesystem::path tmp = temporary_path(file);
+  {
+    H5Handle f{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose};
+    if (f.id < 0) throw std::runtime_error("cannot create frame file '" + tmp.string() + "'");
+    const hsize_t d2[2] = {n, 3}, d1[1] = {n};
+    write_dataset(f.id, "position", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 2, d2, pos.data());
+    write_dataset(f.id, "velocity", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 2, d2, vel.data());
+    write_dataset(f.id, "object_id", H5T_STD_I32LE, H5T_NATIVE_INT, 1, d1, object.data());
+    write_dataset(f.id, "J", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 1, d1, J.data());
+    write_attribute(f.id, "time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, static_cast<double>(time));
+    write_attribute(f.id, "frame", H5T_STD_I32LE, H5T_NATIVE_INT, frame);
+    check(H5Fflush(f.id, H5F_SCOPE_GLOBAL), "frame file");
+  }
+  replace_file(tmp, file);
+}
+
+namespace {
+
+template <class T>
+std::vector<T> read_dataset(hid_t file, const char* name, hid_t mem_type, std::size_t width) {
+  H5Handle set{H5Dopen2(file, name, H5P_DEFAULT), H5Dclose};
+  if (set.id < 0) throw std::runtime_error(std::string("HDF5: no dataset ") + name);
+  H5Handle space{H5Dget_space(set.id), H5Sclose};
+  const hssize_t count = H5Sget_simple_extent_npoints(space.id);
+  if (count < 0) throw std::runtime_error(std::string("HDF5: bad dataset ") + name);
+  std::vector<T> out(static_cast<std::size_t>(count));
+  if (count > 0 && H5Dread(set.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
+    throw std::runtime_error(std::string("HDF5: cannot read ") + name);
+  if (out.size() % width != 0) throw std::runtime_error(std::string("HDF5: bad shape of ") + name);
+  return out;
+}
+
+template <class T>
+T read_attribute(hid_t file, const char* name, hid_t mem_type) {
+  H5Handle attr{H5Aopen(file, name, H5P_DEFAULT), H5Aclose};
+  T value{};
+  if (attr.id < 0 || H5Aread(attr.id, mem_type, &value) < 0)
+    throw std::runtime_error(std::string("HDF5: cannot read attribute ") + name);
+  return value;
+}
+
+}  // namespace
+
+FrameData read_frame_hdf5(const std::filesystem::path& file) {
+  quiet_hdf5();
+  H5Handle f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+  if (f.id < 0) throw std::runtime_error("cannot open frame file '" + file.string() + "'");
+  FrameData d;
+  d.position = read_dataset<float>(f.id, "position", H5T_NATIVE_FLOAT, 3);
+  d.velocity = read_dataset<float>(f.id, "velocity", H5T_NATIVE_FLOAT, 3);
+  d.object_id = read_dataset<int>(f.id, "object_id", H5T_NATIVE_INT, 1);
+  d.J = read_dataset<float>(f.id, "J", H5T_NATIVE_FLOAT, 1);
+  d.time = read_attribute<double>(f.id, "time", H5T_NATIVE_DOUBLE);
+  d.frame = read_attribute<int>(f.id, "frame", H5T_NATIVE_INT);
+  if (d.position.size() != 3 * d.size() || d.velocity.size() != 3 * d.size() ||
+      d.J.size() != d.size())
+    throw std::runtime_error("frame file '" + file.string() + "' has datasets of unequal length");
+  return d;
+}
+
+void prepare_output_directory(const std::filesystem::path& dir, bool force) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir))
+    throw std::runtime_error("cannot create output folder '" + dir.string() + "'" +
+                             (ec ? ": " + ec.message() : ""));
+  std::vector<fs::path> old;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    const bool frame = name.starts_with("frame_") &&
+                       (name.ends_with(".h5") || name.ends_with(".h5.tmp"));
+    if (frame || name == "report.yaml") old.push_back(e.path());
+  }
+  if (!old.empty() && !force)
+    throw std::runtime_error("output folder '" + dir.string() + "' already holds results of an "
+                             "earlier run (" + std::to_string(old.size()) +
+                             " files, e.g. " + old.front().filename().string() +
+                             "); use --force to replace them, or --out to write elsewhere");
+  for (const fs::path& f : old) fs::remove(f, ec);
+  const fs::path probe = dir / ".mpm_write_test";
+  {
+    std::ofstream out(probe);
+    out << "ok";
+    if (!out) throw std::runtime_error("cannot write to output folder '" + dir.string() + "'");
+  }
+  fs::remove(probe, ec);
+}
+
+namespace {
+
+std::filesystem::path numbered(const std::filesystem::path& dir, const char* pattern, int frame) {
+  char name[64];
+  std::snprintf(name, sizeof name, pattern, frame);
+  return dir / name;
+}
+
+/// An N x width dataset from N fixed-size Eigen objects, in their own scalar type.
+template <class T>
+void write_rows(hid_t file, const char* name, const std::vector<T>& v, hsize_t width) {
+  const hsize_t dims[2] = {v.size(), width};
+  // Stored in the particles' own precision, so a resumed run continues bit for bit.
+  constexpr bool f32 = std::is_same_v<typename T::Scalar, float>;
+  write_dataset(file, name, f32 ? H5T_IEEE_F32LE : H5T_IEEE_F64LE,
+                f32 ? H5T_NATIVE_FLOAT : H5T_NATIVE_DOUBLE, 2, dims,
+                v.empty() ? nullptr : static_cast<const void*>(v.data()->data()));
+}
+
+/// Reads an N x width dataset into N fixed-size Eigen objects (HDF5 converts the type).
+template <class T>
+void read_rows(hid_t file, const char* name, std::vector<T>& v, std::size_t width) {
+  const std::vector<double> d = read_dataset<double>(file, name, H5T_NATIVE_DOUBLE, width);
+  if (d.size() != v.size() * width)
+    throw std::runtime_error(std::string("checkpoint: dataset ") + name + " has " +
+                             std::to_string(d.size() / width) + " entries, the scene has " +
+                             std::to_string(v.size()));
+  std::copy(d.begin(), d.end(), v.data()->data());
+}
+
+}  // namespace
+
+void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, int frame) {
+  quiet_hdf5();
+  const std::filesystem::path tmp = temporary_path(file);
+  const Particles& p = sim.particles();
+  {
+    H5Handle f{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose};
+    if (f.id < 0) throw std::runtime_error("cannot create checkpoint '" + tmp.string() + "'");
+    write_rows(f.id, "x", p.x, 3);
+    write_rows(f.id, "v", p.v, 3);
+    write_rows(f.id, "F", p.F, 9);
+    if (!p.C.empty()) write_rows(f.id, "C", p.C, 9);
+    for (std::size_t g = 0; g < sim.materials().size(); ++g) {
+      const std::span<Real> st = sim.materials()[g].material->state();
+      const hsize_t dims[1] = {st.size()};
+      const std::string name = "material_state_" + std::to_string(g);
+      write_dataset(f.id, name.c_str(), H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 1, dims, st.data());
+    }
+    write_attribute(f.id, "time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, static_cast<double>(sim.time()));
+    write_attribute(f.id, "frame", H5T_STD_I32LE, H5T_NATIVE_INT, frame);
+    write_attribute(f.id, "stored_real_bytes", H5T_STD_I32LE, H5T_NATIVE_INT,
+                    static_cast<int>(sizeof(StoredReal)));
+    write_attribute(f.id, "substeps", H5T_STD_U64LE, H5T_NATIVE_ULLONG,
+                    static_cast<unsigned long long>(sim.substeps()));
+    check(H5Fflush(f.id, H5F_SCOPE_GLOBAL), "checkpoint");
+  }
+  replace_file(tmp, file);
+}
+
+int restore_checkpoint(const std::filesystem::path& file, Simulation& sim) {
+  quiet_hdf5();
+  H5Handle f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+  if (f.id < 0) throw std::runtime_error("cannot open checkpoint '" + file.string() + "'");
+  // A float build's F and C would be widened or rounded by a double build and the other way
+  // round: not the run that was stopped, so refuse.
+  const int bytes = read_attribute<int>(f.id, "stored_real_bytes", H5T_NATIVE_INT);
+  if (bytes != static_cast<int>(sizeof(StoredReal)))
+    throw std::runtime_error("checkpoint '" + file.string() + "' was written by a build storing " +
+                             "particle matrices in " + (bytes == 4 ? "float" : "double") +
+                             "; this build stores them in " + kStoredPrecision +
+                             " (CMake option MPM_DOUBLE_PARTICLES)");
+  Particles& p = sim.particles();
+  read_rows(f.id, "x", p.x, 3);
+  read_rows(f.id, "v", p.v, 3);
+  read_rows(f.id, "F", p.F, 9);
+  if (!p.C.empty()) read_rows(f.id, "C", p.C, 9);
+  for (std::size_t g = 0; g < sim.materials().size(); ++g) {
+    const std::span<Real> st = sim.materials()[g].material->state();
+    const std::string name = "material_state_" + std::to_string(g);
+    const std::vector<double> d = read_dataset<double>(f.id, name.c_str(), H5T_NATIVE_DOUBLE, 1);
+    if (d.size() != st.size())
+      throw std::runtime_error("checkpoint: " + name + " does not match the scene's materials");
+    std::copy(d.begin(), d.end(), st.begin());
+  }
+  sim.set_time(read_attribute<double>(f.id, "time", H5T_NATIVE_DOUBLE));
+  sim.set_substeps(read_attribute<unsigned long long>(f.id, "substeps", H5T_NATIVE_ULLONG));
+  return read_attribute<int>(f.id, "frame", H5T_NATIVE_INT);
+}
+
+FrameOutput::FrameOutput(std::filesystem::path dir, const OutputDesc& desc, int resumed_frame)
+    : dir_(std::move(dir)), desc_(desc), resumed_frame_(resumed_frame) {}
+
+void FrameOutput::write(const Simulation& sim, int frame) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Particles& p = sim.particles();
+  J_.resize(p.size());
+  for (std::size_t i = 0; i < p.size(); ++i) J_[i] = to_real(p.F[i]).determinant();
+  const FrameView view{p.x, p.v, p.object, J_, static_cast<double>(sim.time()), frame};
+  for (Format f : desc_.formats) {
+    switch (f) {
+      case Format::hdf5: {
+        write_frame_hdf5(frame_path(dir_, frame), p, sim.time(), frame);
+        std::vector<XdmfFrame> index;
+        for (int k = 0; k <= frame; ++k)
+          if (std::filesystem::exists(frame_path(dir_, k)))
+            index.push_back({frame_path(dir_, k).filename().string(),
+                             k == frame ? static_cast<double>(sim.time())
+                                        : k * sim.scene().simulation.frame_dt,
+                             p.size()});
+        write_xdmf(dir_ / "frames.xmf", index);
+        break;
+      }
+      case Format::bgeo: write_bgeo(numbered(dir_, "frame_%05d.bgeo", frame), view); break;
+      case Format::ply: write_ply(numbered(dir_, "frame_%05d.ply", frame), view); break;
+      case Format::png: {
+        const GridDesc& g = sim.scene().grid;
+        PreviewCamera cam = default_camera(g.origin, g.max);
+        if (desc_.camera) {
+          cam.position = desc_.camera->position;
+          cam.look_at = desc_.camera->look_at;
+          cam.fov_deg = desc_.camera->fov_deg;
+        }
+        // Splats about half the particle spacing across, so bodies look solid.
+        int ppc = 1000;
+        for (const ObjectDesc& o : sim.scene().objects) ppc = std::min(ppc, o.particles_per_cell);
+        cam.particle_radius = 0.6 * g.spacing().minCoeff() / std::cbrt(ppc);
+        std::filesystem::create_directories(dir_ / "preview");
+        render_preview(numbered(dir_ / "preview", "frame_%05d.png", frame), view, cam,
+                       desc_.preview_size.x(), desc_.preview_size.y());
+        break;
+      }
+    }
+  }
+  if (desc_.checkpoint) write_checkpoint(dir_ / "checkpoint.h5", sim, frame);
+  seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  last_frame_ = frame;
+}
+
+void FrameOutput::on_start(const Simulation& sim, int) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir_, ec);
+  if (ec) throw std::runtime_error("cannot create output folder '" + dir_.string() + "': " +
+                                   ec.message());
+  if (resumed_frame_ == 0) write(sim, 0);
+  else last_frame_ = resumed_frame_;
+}
+
+void FrameOutput::on_frame(const Simulation& sim, int frame) { write(sim, frame); }
+
+void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
+  const std::size_t n = sim.particles().size();
+  YAML::Emitter y;
+  y << YAML::BeginMap;
+  y << YAML::Key << "status" << YAML::Value << r.status;
+  if (!r.message.empty()) y << YAML::Key << "message" << YAML::Value << r.message;
+  if (r.instability) {
+    const Instability& u = *r.instability;
+    y << YAML::Key << "instability" << YAML::Value << YAML::BeginMap;
+    y << YAML::Key << "cause" << YAML::Value << u.cause;
+    y << YAML::Key << "frame" << YAML::Value << u.frame;
+    y << YAML::Key << "substep" << YAML::Value << u.substep;
+    y << YAML::Key << "object" << YAML::Value << u.object;
+    y << YAML::Key << "suggested_dt" << YAML::Value << u.suggested_dt;
+    y << YAML::EndMap;
+  }
+  y << YAML::Key << "scene" << YAML::Value << sim.scene().file.string();
+  y << YAML::Key << "particles" << YAML::Value << n;
+  y << YAML::Key << "frames" << YAML::Value << r.frames_done;
+  y << YAML::Key << "last_frame_file" << YAML::Value
+    << (last_frame_ >= 0 ? frame_path(dir_, last_frame_).filename().string() : "");
+  y << YAML::Key << "time" << YAML::Value << sim.time();
+  y << YAML::Key << "substeps" << YAML::Value << sim.substeps();
+  y << YAML::Key << "dt_min" << YAML::Value << r.dt_min;
+  y << YAML::Key << "dt_max" << YAML::Value << r.dt_max;
+  y << YAML::Key << "wall_seconds" << YAML::Value << r.wall_seconds;
+  y << YAML::Key << "loop_seconds" << YAML::Value << r.loop_seconds;
+  y << YAML::Key << "output_seconds" << YAML::Value << seconds_;
+  const double steps = static_cast<double>(n) * sim.substeps();
+  y << YAML::Key << "particle_steps_per_second" << YAML::Value
+    << (r.loop_seconds > 0 ? steps / r.loop_seconds : 0.0);
+  y << YAML::Key << "clamped_particles" << YAML::Value << sim.clamped_particles();
+  y << YAML::Key << "stages" << YAML::Value << YAML::BeginMap;
+  for (const Stage& s : sim.stages()) y << YAML::Key << s.name << YAML::Value << s.seconds;
+  y << YAML::Key << "output" << YAML::Value << seconds_;
+  y << YAML::EndMap;
+  y << YAML::Key << "energy_start" << YAML::Value << r.energy_start;
+  y << YAML::Key << "energy_max" << YAML::Value << r.energy_max;
+  y << YAML::Key << "frame_steps" << YAML::Value << YAML::BeginSeq;
+  for (const FrameSteps& f : r.steps)
+    y << YAML::Flow << YAML::BeginMap << YAML::Key << "frame" << YAML::Value << f.frame
+      << YAML::Key << "substeps" << YAML::Value << f.substeps << YAML::Key << "dt_min"
+      << YAML::Value << f.dt_min << YAML::Key << "dt_max" << YAML::Value << f.dt_max
+      << YAML::EndMap;
+  y << YAML::EndSeq;
+  y << YAML::Key << "objects" << YAML::Value << YAML::BeginSeq;
+  for (const ObjectInfo& o : sim.objects()) {
+    y << YAML::BeginMap;
+    y << YAML::Key << "name" << YAML::Value << o.name;
+    y << YAML::Key << "material" << YAML::Value << o.material;
+    y << YAML::Key << "particles" << YAML::Value << o.count;
+    y << YAML::Key << "mass" << YAML::Value << o.mass;
+    y << YAML::EndMap;
+  }
+  y << YAML::EndSeq << YAML::EndMap;
+
+  std::error_code ec;
+  std::filesystem::create_directories(dir_, ec);
+  write_file_whole(dir_ / "report.yaml", std::string(y.c_str()) + "\n");
+}
+
+}  // namespace mpm

@@ -1,0 +1,72 @@
+#pragma once
+/// \file Frame files (HDF5) and the run report (YAML), written by an observer.
+
+#include <filesystem>
+#include <vector>
+
+#include "engine/run/run.h"
+#include "engine/scene/scene_desc.h"
+
+namespace mpm {
+
+/// Writes `p` as HDF5 datasets position (N x 3), velocity (N x 3), object_id (N), J (N), with
+/// attributes time and frame. Writes to a temporary name and renames, so a frame file is
+/// whole or absent. Throws std::runtime_error on failure.
+void write_frame_hdf5(const std::filesystem::path& file, const Particles& p, Real time,
+                      int frame);
+
+/// One frame file read back: the datasets write_frame_hdf5 writes.
+struct FrameData {
+  std::vector<float> position;  ///< N x 3, row-major.
+  std::vector<float> velocity;  ///< N x 3, row-major.
+  std::vector<int> object_id;   ///< N.
+  std::vector<float> J;         ///< N.
+  double time = 0;              ///< Attribute "time", s.
+  int frame = 0;                ///< Attribute "frame".
+  /// Number of particles.
+  std::size_t size() const { return object_id.size(); }
+};
+
+/// Reads a file written by write_frame_hdf5. Throws std::runtime_error on failure.
+FrameData read_frame_hdf5(const std::filesystem::path& file);
+
+/// Name of frame `frame`'s file in `dir`: frame_00000.h5.
+std::filesystem::path frame_path(const std::filesystem::path& dir, int frame);
+
+/// Makes `dir` ready for a new run: creates it, checks it can be written, and refuses
+/// (std::runtime_error naming the folder) if it already holds frames or a report, unless
+/// `force`, which deletes them first.
+void prepare_output_directory(const std::filesystem::path& dir, bool force);
+
+/// Writes the state a run needs to continue bit for bit (x, v, F, C, material state, time,
+/// substeps, frame) in double precision to `file` (temporary name, then rename).
+void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, int frame);
+
+/// Restores a checkpoint into `sim`, built from the same scene; returns its frame. Throws
+/// std::runtime_error if the file is unreadable or does not match the simulation.
+int restore_checkpoint(const std::filesystem::path& file, Simulation& sim);
+
+/// Writes each frame in the scene's formats (HDF5 with an XDMF index, bgeo, PLY, PNG
+/// previews), a checkpoint after each frame, and report.yaml at the end.
+class FrameOutput : public Observer {
+ public:
+  /// Output into `dir` as `desc` asks; `resumed_frame` > 0 continues a run from that frame
+  /// (its files are kept and frame 0 is not rewritten).
+  FrameOutput(std::filesystem::path dir, const OutputDesc& desc, int resumed_frame = 0);
+  void on_start(const Simulation& sim, int frames) override;
+  void on_frame(const Simulation& sim, int frame) override;
+  void on_finish(const Simulation& sim, const RunResult& result) override;
+  /// Seconds spent writing frames so far.
+  double seconds() const { return seconds_; }
+
+ private:
+  void write(const Simulation& sim, int frame);
+  std::filesystem::path dir_;
+  OutputDesc desc_;
+  int resumed_frame_ = 0;
+  int last_frame_ = -1;
+  double seconds_ = 0;
+  std::vector<Real> J_;  // scratch: det F per particle
+};
+
+}  // namespace mpm

@@ -1,0 +1,390 @@
+#include "engine/run/cli.h"
+
+#include <unistd.h>
+
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <omp.h>
+#include <spdlog/spdlog.h>
+
+#include "engine/tools/bench.h"
+#include "engine/tools/validation/study.h"
+#include "engine/scene/load_scene.h"
+#include "engine/io/output.h"
+#include "engine/run/progress.h"
+#include "engine/run/run.h"
+#include "engine/step/simulation.h"
+#include "engine/io/summary.h"
+#include "engine/scene/validate.h"
+#include "engine/core/version.h"
+#include "materials/plugin.h"
+
+namespace {
+
+constexpr const char* kUsage = R"(mpm - a Material Point Method engine for the CPU
+
+Usage:
+  mpm run SCENE.yaml [options]   simulate and write frames and report.yaml
+  mpm validate SCENE.yaml [--set KEY=VALUE ...]
+                                 check a scene and print what it would simulate
+  mpm materials [SCENE.yaml | PLUGIN.so]
+                                 list every registered material (and a scene's or a file's
+                                 plugins) with its keys, units, defaults and ranges
+  mpm preview DIR [--fps N]      join DIR/preview/frame_*.png into DIR/preview.mp4 (ffmpeg)
+  mpm bench [--cases jello,snow,sparse,two_cubes] [--particles N] [--threads N] [--csv FILE]
+                                 time standard cases (median of 3 after a warm-up;
+                                 two_cubes: the whole scene, once, about 10 minutes)
+  mpm study [--quick] [--cases SWEEP,...] -o DIR
+                                 run the validation cases over sweeps of h, particles per
+                                 cell, CFL, dt, transfer and kernel; write DIR/study.csv and
+                                 DIR/series.csv (docs/accuracy.md)
+  mpm golden SCENE.yaml --frames N -o FILE
+                                 run N frames and write the run summary to FILE (a golden)
+  mpm compare A B [--tol QUANTITY=VALUE ...]
+                                 compare two runs (output folders or summary files), B being
+                                 the reference; exit 0 within tolerance, 1 not, 2 bad input
+  mpm --help | --version
+
+Options of run:
+  --out DIR          write frames and report.yaml to DIR (default: the scene's output.directory)
+  --force            replace the results of an earlier run in the output folder
+  --resume DIR       continue the run in DIR from its last complete frame (checkpoint.h5)
+  --format LIST      formats to write, e.g. hdf5,png (hdf5, bgeo, ply, png; default: the
+                     scene's output.formats, else hdf5)
+  --frames N         simulate N frames instead of the scene's simulation.frames
+  --set KEY=VALUE    override a scene value, e.g. --set grid.dims=64 --set objects[0].E=2e4
+                     (repeatable; checked like the file)
+  --threads N        use N threads (default: all cores)
+  --quiet            print only warnings and the final summary line
+  --log-level LEVEL  trace, debug, info, warn, error or off (default info)
+
+Exit codes: 0 success; 1 the run failed (unstable, interrupted, or output could not be
+written; the report says why and frames already written stay whole); 2 bad scene or usage.
+Ctrl-C or SIGTERM stops a run after the current substep.
+)";
+
+/// The command line.
+struct Args {
+  std::string command, scene, second, out, resume, formats, output_file, log_level = "info";
+  std::vector<std::string> tols;
+  std::string cases, csv;
+  std::optional<long> particles;
+  std::optional<int> frames, threads, fps;
+  std::vector<std::string> sets;
+  bool quiet = false, force = false, quick = false;
+};
+
+[[noreturn]] void usage_error(const std::string& what) {
+  std::fprintf(stderr, "mpm: %s\n(run 'mpm --help' for usage)\n", what.c_str());
+  std::exit(mpm::kExitBadInput);
+}
+
+std::vector<std::string> split_list(const std::string& text) {
+  std::vector<std::string> items;
+  std::stringstream list(text);
+  for (std::string c; std::getline(list, c, ',');) items.push_back(c);
+  return items;
+}
+
+int parse_count(const std::string& flag, const std::string& value, int min) {
+  try {
+    std::size_t used = 0;
+    const int v = std::stoi(value, &used);
+    if (used == value.size() && v >= min) return v;
+  } catch (const std::exception&) {
+  }
+  usage_error(flag + " expects a whole number >= " + std::to_string(min) + ", got '" + value +
+              "'");
+}
+
+Args parse_args(int argc, char** argv) {
+  Args a;
+  std::vector<std::string> words(argv + 1, argv + argc);
+  for (std::size_t i = 0; i < words.size(); ++i) {
+    const std::string& w = words[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= words.size()) usage_error(w + " needs a value");
+      return words[++i];
+    };
+    if (w == "--help" || w == "-h") {
+      std::fputs(kUsage, stdout);
+      std::exit(mpm::kExitOk);
+    } else if (w == "--version") {
+      std::printf("mpm %s (commit %s)\n", MPM_VERSION, mpm::git_commit());
+      std::exit(mpm::kExitOk);
+    } else if (w == "--out") {
+      a.out = value();
+    } else if (w == "--frames") {
+      a.frames = parse_count(w, value(), 0);
+    } else if (w == "--threads") {
+      a.threads = parse_count(w, value(), 1);
+    } else if (w == "--set") {
+      a.sets.push_back(value());
+    } else if (w == "--cases") {
+      a.cases = value();
+    } else if (w == "--csv") {
+      a.csv = value();
+    } else if (w == "--particles") {
+      a.particles = parse_count(w, value(), 1000);
+    } else if (w == "--tol") {
+      a.tols.push_back(value());
+    } else if (w == "-o") {
+      a.output_file = value();
+    } else if (w == "--resume") {
+      a.resume = value();
+    } else if (w == "--format") {
+      a.formats = value();
+    } else if (w == "--fps") {
+      a.fps = parse_count(w, value(), 1);
+    } else if (w == "--force") {
+      a.force = true;
+    } else if (w == "--quick") {
+      a.quick = true;
+    } else if (w == "--quiet") {
+      a.quiet = true;
+    } else if (w == "--log-level") {
+      a.log_level = value();
+    } else if (!w.empty() && w[0] == '-') {
+      usage_error("unknown option '" + w + "'");
+    } else if (a.command.empty()) {
+      a.command = w;
+    } else if (a.scene.empty()) {
+      a.scene = w;
+    } else if (a.command == "compare" && a.second.empty()) {
+      a.second = w;
+    } else {
+      usage_error("unexpected argument '" + w + "'");
+    }
+  }
+  if (a.command.empty()) usage_error("no command given");
+  return a;
+}
+
+int list_materials(const mpm::MaterialRegistry& registry) {
+  for (const mpm::MaterialInfo& m : registry.all()) {
+    std::printf("%s: %s\n  reference: %s\n", m.name.c_str(), m.description.c_str(),
+                m.reference.c_str());
+    std::printf("  %-22s %-8s %-10s %-16s %s\n", "key", "unit", "default", "range", "meaning");
+    for (const mpm::ParamSpec& p : m.params) {
+      char def[32];
+      std::snprintf(def, sizeof def, "%g", p.default_value);
+      std::printf("  %-22s %-8s %-10s %-16s %s\n", p.name.c_str(),
+                  p.unit.empty() ? "-" : p.unit.c_str(), p.required ? "required" : def,
+                  mpm::range_text(p.min, p.max, p.min_exclusive, p.max_exclusive).c_str(),
+                  p.description.c_str());
+    }
+  }
+  return mpm::kExitOk;
+}
+
+std::atomic<bool> g_stop{false};
+
+extern "C" void on_signal(int) { g_stop.store(true); }
+
+int cmd_materials(const Args& args) {
+  mpm::MaterialRegistry registry = mpm::builtin_registry();
+  try {
+    if (args.scene.ends_with(".so")) mpm::load_plugin(args.scene, registry);
+    else if (!args.scene.empty()) mpm::load_scene(args.scene, registry);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return mpm::kExitBadInput;
+  }
+  return list_materials(registry);
+}
+
+int cmd_preview(const Args& args) {
+  if (args.scene.empty()) usage_error("'mpm preview' needs an output folder");
+  const std::filesystem::path dir = args.scene;
+  if (!std::filesystem::is_directory(dir / "preview")) {
+    std::fprintf(stderr, "error: %s has no preview/ folder: run with --format png first\n",
+                 dir.c_str());
+    return mpm::kExitBadInput;
+  }
+  if (std::system("command -v ffmpeg > /dev/null 2>&1") != 0) {
+    std::fprintf(stderr, "error: ffmpeg is not installed (apt-get install ffmpeg); the PNG "
+                         "frames are in %s/preview/\n", dir.c_str());
+    return mpm::kExitRunFailed;
+  }
+  const std::string cmd = "ffmpeg -loglevel error -y -framerate " +
+                          std::to_string(args.fps.value_or(24)) + " -i '" +
+                          (dir / "preview" / "frame_%05d.png").string() +
+                          "' -pix_fmt yuv420p -vf 'scale=trunc(iw/2)*2:trunc(ih/2)*2' '" +
+                          (dir / "preview.mp4").string() + "'";
+  if (std::system(cmd.c_str()) != 0) return mpm::kExitRunFailed;
+  std::printf("%s\n", (dir / "preview.mp4").c_str());
+  return mpm::kExitOk;
+}
+
+int cmd_study(const Args& args) {
+  if (args.output_file.empty()) usage_error("'mpm study' needs -o DIR");
+  mpm::validation::StudyOptions opt;
+  opt.quick = args.quick;
+  opt.threads = args.threads.value_or(0);
+  opt.experiments = split_list(args.cases);
+  return mpm::validation::study_main(opt, args.output_file);
+}
+
+int cmd_bench(const Args& args) {
+  mpm::BenchOptions opt;
+  if (args.threads) opt.threads = *args.threads;
+  if (args.particles) opt.particles = *args.particles;
+  if (!args.cases.empty()) opt.cases = split_list(args.cases);
+  try {
+    const auto results = mpm::run_benchmarks(opt);
+    std::printf("%s", mpm::format_bench_table(results).c_str());
+    if (!args.csv.empty()) {
+      std::ofstream csv(args.csv);
+      csv << mpm::format_bench_csv(results);
+      if (!csv) throw std::runtime_error("cannot write '" + args.csv + "'");
+    }
+  } catch (const std::invalid_argument& e) {
+    usage_error(e.what());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return mpm::kExitRunFailed;
+  }
+  return mpm::kExitOk;
+}
+
+int cmd_compare(const Args& args) {
+  if (args.scene.empty() || args.second.empty()) usage_error("'mpm compare' needs A and B");
+  try {
+    const mpm::RunSummary a = mpm::read_summary(args.scene), b = mpm::read_summary(args.second);
+    const mpm::Tolerances tol =
+        mpm::parse_tolerance_overrides(mpm::default_tolerances(b), args.tols);
+    const mpm::CompareResult r = mpm::compare_summaries(a, b, tol);
+    if (!r.error.empty()) {
+      std::fprintf(stderr, "error: %s\n", r.error.c_str());
+      return mpm::kExitBadInput;
+    }
+    std::printf("%s", mpm::format_comparison(r).c_str());
+    return r.ok ? mpm::kExitOk : mpm::kExitRunFailed;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return mpm::kExitBadInput;
+  }
+}
+
+/// run, validate and golden: describe and validate the scene, build it, then run it.
+int cmd_run(const Args& args) {
+  mpm::MaterialRegistry registry = mpm::builtin_registry();
+  if (args.command == "golden" && args.output_file.empty())
+    usage_error("'mpm golden' needs -o FILE");
+  if (args.command != "run" && args.command != "validate" && args.command != "golden")
+    usage_error("unknown command '" + args.command + "'");
+  if (args.scene.empty()) usage_error("'mpm " + args.command + "' needs a scene file");
+
+  // Describe and validate, then build: any problem is a SceneError, exit code 2.
+  std::unique_ptr<mpm::Simulation> sim;
+  mpm::SceneDesc scene;
+  std::filesystem::path out;
+  int resumed_frame = 0;
+  try {
+    mpm::LoadOptions options;
+    for (const std::string& s : args.sets) options.overrides.push_back(mpm::parse_override(s));
+    scene = mpm::load_scene(args.scene, registry, options);
+    if (!args.formats.empty()) {
+      scene.output.formats.clear();
+      std::stringstream list(args.formats);
+      for (std::string name; std::getline(list, name, ',');) {
+        const auto f = mpm::format_from_name(name);
+        if (!f) throw mpm::SceneError({"--format"}, "", "unknown format '" + name +
+                                                            "'; expected hdf5, bgeo, ply or png");
+        scene.output.formats.push_back(*f);
+      }
+    }
+    sim = mpm::Simulation::create(scene, registry);
+    out = !args.resume.empty() ? std::filesystem::path(args.resume)
+          : args.out.empty()   ? scene.output.directory
+                               : std::filesystem::path(args.out);
+    if (!args.resume.empty()) {
+      try {
+        resumed_frame = mpm::restore_checkpoint(out / "checkpoint.h5", *sim);
+      } catch (const std::exception& e) {
+        throw mpm::SceneError({"--resume"}, "", e.what());
+      }
+    } else if (args.command == "golden") {
+      out = std::filesystem::path(args.output_file).parent_path();
+      if (out.empty()) out = ".";
+    } else if (args.command == "run") {
+      try {
+        mpm::prepare_output_directory(out, args.force);
+      } catch (const std::exception& e) {
+        if (!args.out.empty()) throw mpm::SceneError({"--out"}, "", e.what());
+        throw mpm::SceneError(scene.output.loc, "output.directory", e.what());
+      }
+    }
+  } catch (const mpm::SceneError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return mpm::kExitBadInput;
+  }
+  for (const std::string& w : mpm::scene_warnings(*sim)) spdlog::warn("{}", w);
+  if (args.command == "validate") {
+    std::printf("%s: valid, %zu particles\n%s", args.scene.c_str(), sim->particles().size(),
+                mpm::scene_summary(*sim).c_str());
+    return mpm::kExitOk;
+  }
+
+  const int frames = args.frames.value_or(scene.simulation.frames);
+  if (!args.quiet) std::printf("%s", mpm::scene_summary(*sim).c_str());
+  spdlog::info("{} particles, {} frames, output in {}", sim->particles().size(), frames,
+               out.string());
+  if (resumed_frame > 0) spdlog::info("resuming from frame {}", resumed_frame);
+
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  mpm::FrameOutput output(out, scene.output, resumed_frame);
+  mpm::SummaryWriter summary(out);
+  mpm::SummaryWriter golden(out, std::filesystem::path(args.output_file).filename().string());
+  mpm::Progress progress(isatty(fileno(stderr)) != 0);
+  std::vector<mpm::Observer*> observers;
+  if (args.command == "golden") observers = {&golden};
+  else observers = {&output, &summary};
+  if (!args.quiet) observers.push_back(&progress);
+  const mpm::RunResult r =
+      mpm::run_frames(*sim, frames, scene.simulation.frame_dt, observers, &g_stop,
+                      resumed_frame + 1);
+
+  const double steps = static_cast<double>(sim->particles().size()) * sim->substeps();
+  std::printf("%s: %s, %zu particles, %d frames, %zu substeps in %.1f s (%.2fM particle-steps/s)"
+              "; output in %s\n",
+              args.scene.c_str(), r.status.c_str(), sim->particles().size(), r.frames_done,
+              sim->substeps(), r.wall_seconds,
+              r.loop_seconds > 0 ? steps / r.loop_seconds / 1e6 : 0.0, out.string().c_str());
+  if (r.status != "ok") {
+    std::fprintf(stderr, "error: %s\n", r.message.c_str());
+    return mpm::kExitRunFailed;
+  }
+  return mpm::kExitOk;
+}
+
+}  // namespace
+
+namespace mpm {
+
+int run_cli(int argc, char** argv) {
+  const Args args = parse_args(argc, argv);
+  const auto level = spdlog::level::from_str(args.log_level);
+  if (level == spdlog::level::off && args.log_level != "off")
+    usage_error("unknown log level '" + args.log_level + "'");
+  spdlog::set_level(args.quiet ? spdlog::level::warn : level);
+  if (args.threads) omp_set_num_threads(*args.threads);
+
+  if (args.command == "materials") return cmd_materials(args);
+  if (args.command == "preview") return cmd_preview(args);
+  if (args.command == "study") return cmd_study(args);
+  if (args.command == "bench") return cmd_bench(args);
+  if (args.command == "compare") return cmd_compare(args);
+  return cmd_run(args);
+}
+
+}  // namespace mpm

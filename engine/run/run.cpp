@@ -1,0 +1,146 @@
+#include "engine/run/run.h"
+
+#include <chrono>
+#include <cmath>
+#include <algorithm>
+#include <cstdio>
+#include <limits>
+
+namespace mpm {
+
+namespace {
+
+/// The first sign of an unstable substep, or std::nullopt (references.md, "Time step").
+std::optional<Instability> diagnose(const Simulation& sim, Real dt) {
+  const AdvectStats& a = sim.last_advect();
+  const Real h = sim.grid().h.minCoeff();
+  char buf[256];
+  if (a.nonfinite > 0 || !std::isfinite(a.max_speed)) {
+    const std::size_t q = sim.first_nonfinite_particle();
+    std::snprintf(buf, sizeof buf, "%zu particles have a non-finite position or velocity",
+                  a.nonfinite);
+    return Instability{buf, q < sim.particles().size() ? sim.object_of(q).name : ""};
+  }
+  if (a.max_speed * dt > h) {
+    const std::size_t q = sim.fastest_particle();
+    std::snprintf(buf, sizeof buf,
+                  "a particle moves %.3g m/s, %.2f cells per substep (more than the grid can "
+                  "carry: at most 1)",
+                  static_cast<double>(a.max_speed), static_cast<double>(a.max_speed * dt / h));
+    return Instability{buf, sim.object_of(q).name};
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
+                     const std::vector<Observer*>& observers, const std::atomic<bool>* stop,
+                     int first_frame) {
+  using clock = std::chrono::steady_clock;
+  const auto start = clock::now();
+  RunResult result;
+  result.dt_min = std::numeric_limits<Real>::infinity();
+  const bool adaptive = sim.scene().simulation.cfl.has_value();
+  result.energy_start = result.energy_max = sim.total_energy();
+  // The dt to suggest if the run goes wrong: the CFL bound at cfl 0.5, from the last healthy
+  // state seen at a frame end.
+  const Real cfl = 0.5;
+  Real suggested_dt = sim.cfl_bound(cfl);
+  auto fail = [&](Instability why, int frame) {
+    why.frame = frame;
+    why.substep = sim.substeps();
+    why.suggested_dt = suggested_dt;
+    result.status = "unstable";
+    char buf[160];
+    std::snprintf(buf, sizeof buf, " (frame %d, substep %zu%s%s); try dt <= %.3g s or cfl <= 0.5",
+                  frame, why.substep, why.object.empty() ? "" : ", object ",
+                  why.object.c_str(), static_cast<double>(why.suggested_dt));
+    result.message = why.cause + buf;
+    result.instability = why;
+  };
+  try {
+    for (Observer* o : observers) o->on_start(sim, frames);
+    result.frames_done = first_frame - 1;
+    for (int f = first_frame; f <= frames && result.status == "ok"; ++f) {
+      const Real frame_end = f * frame_dt;
+      // A whole number of equal substeps fills the frame, each no larger than the bound.
+      int remaining_steps = 0;
+      Real dt = 0;
+      FrameSteps steps{f, 0, std::numeric_limits<Real>::infinity(), 0};
+      while (true) {
+        const Real remaining = frame_end - sim.time();
+        if (remaining <= frame_dt * 1e-9) break;
+        if (adaptive || remaining_steps == 0) {
+          const Real bound = sim.stable_dt();
+          if (!(bound > 0) || !std::isfinite(bound)) {
+            fail({"the CFL time step bound is not a positive finite number", ""}, f);
+            break;
+          }
+          const double steps = std::ceil(remaining / bound * (1 - 1e-12));
+          if (steps > 1e9) {
+            fail({"the time step bound is over a billion times smaller than the frame time", ""}, f);
+            break;
+          }
+          remaining_steps = static_cast<int>(steps);
+          dt = remaining / remaining_steps;
+        }
+        const auto s0 = clock::now();
+        sim.substep(dt);
+        result.loop_seconds += std::chrono::duration<double>(clock::now() - s0).count();
+        result.dt_min = std::min(result.dt_min, dt);
+        result.dt_max = std::max(result.dt_max, dt);
+        ++steps.substeps;
+        steps.dt_min = std::min(steps.dt_min, dt);
+        steps.dt_max = std::max(steps.dt_max, dt);
+        --remaining_steps;
+        if (auto why = diagnose(sim, dt)) {
+          fail(*why, f);
+          break;
+        }
+        for (Observer* o : observers) o->on_substep(sim, f);
+        if (stop && stop->load()) {
+          result.status = "interrupted";
+          result.message = "stopped by a signal at substep " + std::to_string(sim.substeps()) +
+                           "; the last complete frame is " + std::to_string(f - 1);
+          break;
+        }
+      }
+      if (steps.substeps == 0) steps.dt_min = 0;
+      result.steps.push_back(steps);
+      if (result.status != "ok") break;
+      // Energy may only grow by the work moving walls do on the bodies.
+      const Real energy = sim.total_energy() - sim.wall_work();
+      result.energy_max = std::max(result.energy_max, energy);
+      // The allowance scales with the energy in play: the start's, or what walls put in.
+      const Real scale = std::max(std::abs(result.energy_start), std::abs(sim.wall_work()));
+      if (energy > result.energy_start + kEnergyGrowthLimit * scale + 1e-9) {
+        char buf[200];
+        std::snprintf(buf, sizeof buf,
+                      "total energy less the work of moving walls grew from %.4g J to %.4g J",
+                      static_cast<double>(result.energy_start), static_cast<double>(energy));
+        fail({buf, ""}, f);
+        break;
+      }
+      suggested_dt = sim.cfl_bound(cfl);
+      sim.set_time(frame_end);
+      result.frames_done = f;
+      for (Observer* o : observers) o->on_frame(sim, f);
+    }
+  } catch (const std::exception& e) {
+    result.status = "error";
+    result.message = e.what();
+  }
+  if (!std::isfinite(result.dt_min)) result.dt_min = 0;
+  result.wall_seconds = std::chrono::duration<double>(clock::now() - start).count();
+  for (Observer* o : observers) {
+    try {
+      o->on_finish(sim, result);
+    } catch (const std::exception& e) {
+      if (result.status == "ok") result.status = "error", result.message = e.what();
+    }
+  }
+  return result;
+}
+
+}  // namespace mpm

@@ -1,0 +1,72 @@
+#pragma once
+/// \file The frame loop: substeps until each frame time, with observers between steps.
+
+#include <atomic>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "engine/step/simulation.h"
+
+namespace mpm {
+
+/// Substep sizes within one frame.
+struct FrameSteps {
+  int frame = 0;           ///< Frame number.
+  std::size_t substeps = 0;///< Substeps taken in the frame.
+  Real dt_min = 0;         ///< Smallest substep, s.
+  Real dt_max = 0;         ///< Largest substep, s.
+};
+
+/// Why a run was declared unstable.
+struct Instability {
+  std::string cause;        ///< What was measured, in words with numbers.
+  std::string object;       ///< Object of the offending particle ("" if none in particular).
+  int frame = 0;            ///< Frame being computed.
+  std::size_t substep = 0;  ///< Substep (counted from the start of the run).
+  Real suggested_dt = 0;    ///< dt the CFL bound (cfl 0.5) suggests, s.
+};
+
+/// How a run ended.
+struct RunResult {
+  std::string status = "ok";  ///< ok | unstable | error | interrupted.
+  std::string message;        ///< Why, when not ok.
+  std::optional<Instability> instability;  ///< Details when status is unstable.
+  std::vector<FrameSteps> steps;           ///< Substep sizes per frame.
+  Real energy_start = 0;      ///< Total energy at the start, J.
+  Real energy_max = 0;        ///< Largest total energy less wall work at a frame end, J.
+  int frames_done = 0;        ///< Frames completed after the initial state.
+  double wall_seconds = 0;    ///< Whole run including output.
+  double loop_seconds = 0;    ///< Time inside substeps only.
+  Real dt_min = 0;            ///< Smallest substep taken, s.
+  Real dt_max = 0;            ///< Largest substep taken, s.
+};
+
+/// Watches a run between steps: output, progress, checks. Must not change the state.
+class Observer {
+ public:
+  virtual ~Observer() = default;
+  /// Before the first substep, with the initial state as frame 0.
+  virtual void on_start(const Simulation& sim, int frames) {}
+  /// After every substep.
+  virtual void on_substep(const Simulation& sim, int frame) {}
+  /// After frame `frame` (1-based) is complete.
+  virtual void on_frame(const Simulation& sim, int frame) {}
+  /// Once at the end, whatever the status.
+  virtual void on_finish(const Simulation& sim, const RunResult& result) {}
+};
+
+/// Total energy less wall work may not exceed its start by more than this fraction of the
+/// larger of the start energy and the wall work: explicit MPM only dissipates when stable.
+inline constexpr Real kEnergyGrowthLimit = 0.5;
+
+/// Runs frames first_frame..frames, frame f ending at time f * frame_dt (the state is at frame
+/// first_frame - 1 on entry: 0 for a new run, the checkpoint's frame when resuming). An observer
+/// that throws std::exception ends the run with status "error"; a non-finite particle ends it
+/// with status "unstable"; `stop` becoming true (e.g. from a signal handler) ends it after the
+/// current substep with status "interrupted".
+RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
+                     const std::vector<Observer*>& observers,
+                     const std::atomic<bool>* stop = nullptr, int first_frame = 1);
+
+}  // namespace mpm

@@ -1,0 +1,66 @@
+#include "engine/scene/sampling.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace mpm {
+
+namespace {
+
+std::uint64_t mix(std::uint64_t z) {
+  z += 0x9e3779b97f4a7c15ull;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  return z ^ (z >> 31);
+}
+
+}  // namespace
+
+double hash_uniform(std::uint64_t key) {
+  return static_cast<double>(mix(key) >> 11) * 0x1.0p-53;
+}
+
+std::vector<Vec3> sample_inside(const TriangleMesh& mesh, const GridDesc& gd, int per_cell, bool regular,
+                                std::uint64_t seed, std::uint64_t stream) {
+  const InsideTester tester(mesh);
+  const Vec3 h = gd.spacing();
+  Vec3i lo, hi;
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::max(0, static_cast<int>(std::floor((tester.bounds().min()[a] - gd.origin[a]) / h[a])));
+    hi[a] = std::min(gd.dims[a] - 1,
+                     static_cast<int>(std::floor((tester.bounds().max()[a] - gd.origin[a]) / h[a])));
+  }
+  if ((hi - lo).minCoeff() < 0) return {};
+  const int strata = static_cast<int>(std::lround(std::cbrt(per_cell)));
+  const bool stratified = strata * strata * strata == per_cell;
+  const std::uint64_t base_key = mix(mix(seed) ^ (stream * 0x632be59bd9b4e019ull));
+
+  // One list per x slice, filled in parallel and joined in order.
+  const int nx = hi.x() - lo.x() + 1;
+  std::vector<std::vector<Vec3>> slices(nx);
+#pragma omp parallel for schedule(dynamic, 1)
+  for (int i = lo.x(); i <= hi.x(); ++i) {
+    std::vector<Vec3>& out = slices[i - lo.x()];
+    for (int j = lo.y(); j <= hi.y(); ++j)
+      for (int k = lo.z(); k <= hi.z(); ++k) {
+        const std::uint64_t cell =
+            (static_cast<std::uint64_t>(i) * gd.dims.y() + j) * gd.dims.z() + k;
+        const Vec3 corner = gd.origin + Vec3(i, j, k).cwiseProduct(h);
+        for (int s = 0; s < per_cell; ++s) {
+          const std::uint64_t key = mix(base_key ^ mix(cell * 1024 + s)) ;
+          Vec3 u(hash_uniform(key), hash_uniform(key + 1), hash_uniform(key + 2));
+          if (stratified) {
+            const Vec3 sub(s / (strata * strata), (s / strata) % strata, s % strata);
+            u = (sub + (regular ? Vec3::Constant(0.5) : u)) / strata;
+          }
+          const Vec3 x = corner + u.cwiseProduct(h);
+          if (tester.inside(x)) out.push_back(x);
+        }
+      }
+  }
+  std::vector<Vec3> points;
+  for (const auto& s : slices) points.insert(points.end(), s.begin(), s.end());
+  return points;
+}
+
+}  // namespace mpm

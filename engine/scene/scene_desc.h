@@ -1,0 +1,131 @@
+#pragma once
+/// \file The parsed, validated scene as plain data. Only load_scene.cpp knows it came from YAML.
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "engine/core/error.h"
+#include "engine/step/kernels.h"
+#include "engine/core/math.h"
+#include "materials/material.h"
+
+namespace mpm {
+
+/// How particle velocities are carried to and from the grid.
+enum class Transfer { apic, pic, flip };
+
+/// What a wall does to grid velocities that point into it.
+enum class Boundary {
+  sticky,    ///< Velocity set to zero.
+  slip,      ///< Normal component removed; tangential slides with Coulomb friction.
+  separate,  ///< Only an inward normal component is removed; bodies may lift off.
+};
+
+/// Time stepping and global physics.
+struct SimulationDesc {
+  int frames = 120;                   ///< Frames written after the initial state.
+  double frame_dt = 1.0 / 24.0;       ///< Seconds between frames.
+  std::optional<double> dt;           ///< Fixed substep (s), or the cap when cfl is set.
+  std::optional<double> cfl;          ///< CFL number for the adaptive substep.
+  Vec3 gravity{0, -9.81, 0};          ///< m/s^2.
+  Transfer transfer = Transfer::apic; ///< Transfer scheme.
+  double flip_blend = 0.95;           ///< FLIP fraction when transfer is flip.
+  Kernel kernel = Kernel::quadratic;  ///< Interpolation kernel.
+  double damping = 0;                 ///< Grid velocity damping rate, 1/s (0: none).
+  std::uint64_t seed = 1;             ///< Seed for particle sampling.
+};
+
+/// Where particles go inside each grid cell.
+enum class Sampling {
+  jittered,  ///< One random point per sub-cell of an n^3 split (random in the cell otherwise).
+  regular,   ///< The sub-cell centres: a lattice (particles_per_cell must be a cube).
+};
+
+/// A regular background grid.
+struct GridDesc {
+  Vec3 origin{0, 0, 0};  ///< Minimum corner, m.
+  Vec3 max{1, 1, 1};     ///< Maximum corner, m.
+  Vec3i dims{100, 100, 100};  ///< Cells per axis.
+  int buffer = 3;        ///< Cells lining the boundary that particles never enter.
+  FileLoc loc;           ///< Where `dims` is written (for errors about the grid's size).
+
+  /// Cell size per axis, m.
+  Vec3 spacing() const { return (max - origin).cwiseQuotient(dims.cast<Real>()); }
+};
+
+/// One body: a closed mesh filled with particles of one material.
+struct ObjectDesc {
+  std::string name;                ///< Unique name.
+  std::filesystem::path mesh;      ///< Absolute or scene-relative path, resolved by the loader.
+  Vec3 scale{1, 1, 1};             ///< Scale per axis, applied first.
+  Vec3 rotation_deg{0, 0, 0};      ///< Degrees about x, then y, then z.
+  Vec3 offset{0, 0, 0};            ///< Where the mesh origin goes, m.
+  Vec3 velocity{0, 0, 0};          ///< Initial velocity of the centroid, m/s.
+  Vec3 angular_velocity{0, 0, 0};  ///< Initial spin about the centroid, rad/s.
+  Mat3 velocity_gradient = Mat3::Zero();  ///< Initial dv/dx about the centroid (adds to spin), 1/s.
+  std::optional<double> mass;      ///< Total mass, kg (or density).
+  std::optional<double> density;   ///< kg/m^3 (or mass).
+  int particles_per_cell = 8;      ///< Particles per grid cell.
+  Sampling sampling = Sampling::jittered;  ///< Placement inside each cell.
+  std::string material;            ///< Name in the material registry.
+  ParamValues params;              ///< The material's parameters, validated.
+  FileLoc loc;                     ///< Where the object starts in the scene file.
+  FileLoc mesh_loc;                ///< Where its mesh path is written.
+};
+
+/// A keyframe of a moving wall: its offset from the start position at time t.
+struct WallKey {
+  double t = 0;                ///< Time, s.
+  Vec3 offset{0, 0, 0};        ///< Displacement from the scene position, m.
+};
+
+/// A wall acting on grid velocities.
+struct WallDesc {
+  enum class Shape { plane, box };
+  Shape shape = Shape::plane;      ///< Plane or box of six inward planes.
+  Vec3 point{0, 0, 0};             ///< Plane: a point on it, m.
+  Vec3 normal{0, 1, 0};            ///< Plane: unit normal pointing into the free side.
+  Vec3 min{0, 0, 0};               ///< Box: minimum corner, m.
+  Vec3 max{1, 1, 1};               ///< Box: maximum corner, m.
+  Boundary boundary = Boundary::sticky;  ///< Condition.
+  double friction = 0;             ///< Coulomb coefficient (slip and separate).
+  Vec3 velocity{0, 0, 0};          ///< Constant velocity of the wall (it moves), m/s.
+  std::vector<WallKey> path;       ///< Or keyframes, linear in between, held after the last.
+  FileLoc loc;                     ///< Where the wall starts in the scene file.
+};
+
+/// File formats a run can write per frame.
+enum class Format { hdf5, bgeo, ply, png };
+
+/// A camera for PNG previews.
+struct CameraDesc {
+  Vec3 position{0.5, 0.7, 2.5};  ///< Eye position, m.
+  Vec3 look_at{0.5, 0.4, 0.5};   ///< Point at the image centre, m.
+  double fov_deg = 40;           ///< Vertical field of view, degrees.
+};
+
+/// Where and what to write.
+struct OutputDesc {
+  std::filesystem::path directory = "output";  ///< Frame folder (absolute or cwd-relative).
+  FileLoc loc;                                 ///< Where the directory is written.
+  std::vector<Format> formats{Format::hdf5};   ///< Formats written per frame.
+  std::optional<CameraDesc> camera;            ///< PNG camera; default frames the grid.
+  Vec2i preview_size{640, 480};                ///< PNG width and height, pixels.
+  bool checkpoint = true;                      ///< Keep DIR/checkpoint.h5 for --resume.
+};
+
+/// A whole scene, validated.
+struct SceneDesc {
+  std::filesystem::path file;      ///< The scene file it was read from.
+  SimulationDesc simulation;       ///< Time stepping and physics.
+  GridDesc grid;                   ///< Background grid.
+  std::vector<ObjectDesc> objects; ///< Bodies.
+  std::vector<WallDesc> walls;     ///< Walls.
+  OutputDesc output;               ///< Output.
+  std::vector<std::filesystem::path> plugins;  ///< Material plugins loaded for this scene.
+};
+
+}  // namespace mpm

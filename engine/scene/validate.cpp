@@ -1,0 +1,94 @@
+#include "engine/scene/validate.h"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <unordered_map>
+
+namespace mpm {
+
+double physical_memory_bytes() {
+  return static_cast<double>(sysconf(_SC_PHYS_PAGES)) * static_cast<double>(sysconf(_SC_PAGE_SIZE));
+}
+
+namespace {
+
+std::string fmt(const char* f, double a, double b = 0, double c = 0) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, f, a, b, c);
+  return buf;
+}
+
+/// Pairs of objects with particles in a common grid cell.
+std::vector<std::pair<std::size_t, std::size_t>> overlapping_objects(const Simulation& sim) {
+  const Grid& g = sim.grid();
+  const Particles& p = sim.particles();
+  std::unordered_map<std::size_t, std::uint32_t> owner;
+  std::vector<std::pair<std::size_t, std::size_t>> pairs;
+  std::vector<char> seen(sim.objects().size() * sim.objects().size(), 0);
+  for (std::size_t q = 0; q < p.size(); ++q) {
+    const Vec3 c = (p.x[q] - g.origin).cwiseProduct(g.inv_h);
+    const std::size_t key =
+        (static_cast<std::size_t>(c.x()) * g.nodes.y() + std::size_t(c.y())) * g.nodes.z() +
+        std::size_t(c.z());
+    auto [it, added] = owner.emplace(key, p.object[q]);
+    if (added || it->second == p.object[q]) continue;
+    const std::size_t a = std::min(it->second, p.object[q]), b = std::max(it->second, p.object[q]);
+    char& flag = seen[a * sim.objects().size() + b];
+    if (!flag) pairs.emplace_back(a, b), flag = 1;
+  }
+  return pairs;
+}
+
+}  // namespace
+
+std::vector<std::string> scene_warnings(Simulation& sim) {
+  std::vector<std::string> w;
+  const SceneDesc& scene = sim.scene();
+  for (const auto& [a, b] : overlapping_objects(sim))
+    w.push_back("objects '" + sim.objects()[a].name + "' and '" + sim.objects()[b].name +
+                "' overlap at the start (they share grid cells)");
+  const Real bound = sim.cfl_bound(1.0);
+  if (!scene.simulation.cfl && scene.simulation.dt && *scene.simulation.dt > bound)
+    w.push_back(fmt("simulation.dt = %g s is above the CFL bound h / (c + |v|max) = %.3g s at "
+                    "the start; the run is likely to become unstable: lower dt or set cfl",
+                    *scene.simulation.dt, bound));
+  for (const ObjectDesc& o : scene.objects)
+    if (o.particles_per_cell < 8)
+      w.push_back("object '" + o.name + "': particles_per_cell " +
+                  std::to_string(o.particles_per_cell) +
+                  " is fewer than 2 per cell along each axis; expect gaps and cell-crossing noise");
+  const double bytes = static_cast<double>(sim.particles().size()) * 500;
+  if (sim.particles().size() > 20'000'000 || bytes > 0.5 * physical_memory_bytes())
+    w.push_back(fmt("%.0f particles need about %.1f GB of memory", sim.particles().size(),
+                    bytes / 1e9));
+  return w;
+}
+
+std::string scene_summary(Simulation& sim) {
+  const SceneDesc& s = sim.scene();
+  std::string out;
+  for (const ObjectInfo& o : sim.objects())
+    out += "object " + o.name + ": " + o.material + ", " +
+           std::to_string(o.count) + " particles, " + fmt("%g kg, %g kg/m^3\n", o.mass, o.density);
+  const Vec3 h = s.grid.spacing();
+  out += "grid: " + std::to_string(s.grid.dims.x()) + " x " + std::to_string(s.grid.dims.y()) +
+         " x " + std::to_string(s.grid.dims.z()) + " cells, " +
+         fmt("h = %g x %g x %g m, ", h.x(), h.y(), h.z()) + "buffer " +
+         std::to_string(s.grid.buffer) + " cells\n";
+  if (s.simulation.cfl)
+    out += fmt("time step: adaptive, cfl %g, %.3g s at the start", *s.simulation.cfl,
+               sim.cfl_bound(*s.simulation.cfl)) +
+           (s.simulation.dt ? fmt(", capped at %g s\n", *s.simulation.dt) : std::string("\n"));
+  else
+    out += fmt("time step: fixed %g s (CFL bound h / (c + |v|max) at the start: %.3g s)\n",
+               *s.simulation.dt, sim.cfl_bound(1.0));
+  out += fmt("frames: %g of %g s\n", s.simulation.frames, s.simulation.frame_dt);
+  out += "stages:";
+  for (const Stage& st : sim.stages()) out += " " + st.name;
+  out += "\n";
+  return out;
+}
+
+}  // namespace mpm

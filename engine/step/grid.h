@@ -1,0 +1,121 @@
+#pragma once
+/// \file The background grid: sparse 4^3-node blocks where the particles are.
+
+#include <cassert>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "engine/core/math.h"
+#include "engine/scene/scene_desc.h"
+
+namespace mpm {
+
+/// Grid node state, stored sparsely: only the 4 x 4 x 4-node blocks the particles' stencils
+/// touch in this substep have storage, so memory and time follow the particles, not the box.
+///
+/// A page table maps each block of the domain to a storage slot (or -1). Node (i, j, k) sits at
+/// origin + (i, j, k) * h and is stored at slot * 64 + its offset inside the block. Slots are
+/// given out in block order (x slowest) by activate_blocks, the same on any thread count.
+struct Grid {
+  static constexpr int kBlockBits = 2;                      ///< log2 of the block edge.
+  static constexpr int kBlockEdge = 1 << kBlockBits;        ///< Nodes per block edge (4).
+  static constexpr int kBlockNodes = kBlockEdge * kBlockEdge * kBlockEdge;  ///< 64.
+
+  Vec3 origin;        ///< Position of node (0, 0, 0), m.
+  Vec3 h;             ///< Cell size per axis, m.
+  Vec3 inv_h;         ///< 1 / h.
+  Vec3i nodes;        ///< Nodes per axis (cells + 1).
+  int buffer = 3;     ///< Boundary cells particles never enter.
+  Vec3i blocks;       ///< Blocks per axis covering the nodes.
+  bool flip = false;  ///< True if force and velocity_old are kept (FLIP only).
+
+  std::vector<std::int32_t> slot;  ///< Page table: block -> storage slot, -1 if not in use.
+  std::vector<Vec3i> block_first;  ///< First node (i, j, k) of the block in each slot.
+
+  std::vector<Real> mass;          ///< Node mass, kg.
+  std::vector<Vec3> velocity;      ///< Momentum after transfer, then velocity, m/s.
+  std::vector<Vec3> force;         ///< Internal force from stress, N (FLIP only; else empty).
+  std::vector<Vec3> velocity_old;  ///< Velocity before forces (FLIP only; else empty).
+
+  /// A grid for `desc`; `flip` keeps velocity_old and force, which only FLIP uses.
+  Grid(const GridDesc& desc, bool flip);
+  /// Page-table entry of block (bi, bj, bk).
+  std::size_t page(int bi, int bj, int bk) const {
+    return (static_cast<std::size_t>(bi) * blocks.y() + bj) * blocks.z() + bk;
+  }
+  /// Storage indices of the N^3 nodes from `base` (k fastest), whose blocks must be active:
+  /// one page-table lookup per block (at most two per axis), not one per node.
+  template <int N>
+  void stencil_indices(const Vec3i& base, std::size_t* out) const {
+    static_assert(N <= kBlockEdge + 1, "a stencil spans at most two blocks per axis");
+    constexpr int m = kBlockEdge - 1;
+    const Vec3i b0(base.x() >> kBlockBits, base.y() >> kBlockBits, base.z() >> kBlockBits);
+    int blk[3][N], off[3][N];
+    for (int a = 0; a < 3; ++a)
+      for (int t = 0; t < N; ++t) {
+        blk[a][t] = ((base[a] + t) >> kBlockBits) - b0[a];
+        off[a][t] = (base[a] + t) & m;
+      }
+    std::size_t first[2][2][2];
+    for (int di = 0; di <= blk[0][N - 1]; ++di)
+      for (int dj = 0; dj <= blk[1][N - 1]; ++dj)
+        for (int dk = 0; dk <= blk[2][N - 1]; ++dk) {
+          const std::int32_t s = slot[page(b0.x() + di, b0.y() + dj, b0.z() + dk)];
+          assert(s >= 0 && "the sort activates every block a stencil touches");
+          first[di][dj][dk] = static_cast<std::size_t>(s) * kBlockNodes;
+        }
+    int c = 0;
+    for (int i = 0; i < N; ++i)
+      for (int j = 0; j < N; ++j)
+        for (int k = 0; k < N; ++k)
+          out[c++] = first[blk[0][i]][blk[1][j]][blk[2][k]] +
+                     ((off[0][i] << (2 * kBlockBits)) | (off[1][j] << kBlockBits) | off[2][k]);
+  }
+  /// World position of node (i, j, k), m.
+  Vec3 position(int i, int j, int k) const {
+    return origin + Vec3(i, j, k).cwiseProduct(h);
+  }
+  /// Number of blocks with storage this substep.
+  std::size_t active_blocks() const { return block_first.size(); }
+  /// Gives storage to the blocks marked 0 in `slot` inside the block box [lo, hi] (others
+  /// must be -1), in block order, and sizes the node arrays to match.
+  void activate_blocks(const Vec3i& lo, const Vec3i& hi);
+  /// Returns every active block to -1 in the page table.
+  void release_blocks();
+};
+
+/// Calls f(i, j, k, idx) for every node of every active block, in parallel over blocks. A
+/// block is visited by one thread, so f may accumulate into per-block (idx / 64) slots.
+template <class Fn>
+void for_each_active_node(const Grid& g, Fn&& f) {
+  const std::ptrdiff_t nb = static_cast<std::ptrdiff_t>(g.active_blocks());
+  constexpr int E = Grid::kBlockEdge;
+#pragma omp parallel for schedule(static) if (nb * Grid::kBlockNodes >= kParallelMinItems)
+  for (std::ptrdiff_t b = 0; b < nb; ++b) {
+    const Vec3i o = g.block_first[b];
+    std::size_t idx = static_cast<std::size_t>(b) * Grid::kBlockNodes;
+    for (int i = o.x(); i < o.x() + E; ++i)
+      for (int j = o.y(); j < o.y() + E; ++j)
+        for (int k = o.z(); k < o.z() + E; ++k, ++idx)
+          if (i < g.nodes.x() && j < g.nodes.y() && k < g.nodes.z()) f(i, j, k, idx);
+  }
+}
+
+}  // namespace mpm
+
+namespace mpm {
+
+/// Momentum to velocity, v_i = (m v)_i / m_i; keeps a copy in velocity_old for FLIP.
+void grid_update(Grid& grid);
+
+/// v_i += dt f_i / m_i: the internal forces particles_to_grid scattered for FLIP.
+void apply_stress_forces(Real dt, Grid& grid);
+
+/// v_i += dt g on nodes with mass.
+void apply_gravity(Real dt, const Vec3& gravity, Grid& grid);
+
+/// v_i *= exp(-rate dt): viscous damping toward rest, for settling to static equilibrium.
+void apply_damping(Real dt, Real rate, Grid& grid);
+
+}  // namespace mpm

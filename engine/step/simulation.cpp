@@ -1,0 +1,252 @@
+#include "engine/step/simulation.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <span>
+#include <utility>
+
+#include <unistd.h>
+
+#include <cstdio>
+
+#include "engine/scene/mesh.h"
+#include "engine/scene/sampling.h"
+
+namespace mpm {
+
+namespace {
+
+template <class T>
+std::span<T> slice(std::vector<T>& v, const MaterialRange& r) {
+  return std::span<T>(v).subspan(r.first, r.count);
+}
+
+template <class T>
+std::span<const T> slice(const std::vector<T>& v, const MaterialRange& r) {
+  return std::span<const T>(v).subspan(r.first, r.count);
+}
+
+}  // namespace
+
+Simulation::Simulation(const SceneDesc& scene)
+    : scene_(scene), grid_(scene.grid, scene.simulation.transfer == Transfer::flip) {}
+
+namespace {
+
+/// Throws SceneError if `bytes` cannot fit in this machine's memory.
+void check_memory(double bytes, const FileLoc& loc, const std::string& key, const std::string& what) {
+  const double have = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE);
+  if (bytes > 0.8 * have) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, " needs %.3g GB of memory; this machine has %.3g GB", bytes / 1e9,
+                  have / 1e9);
+    throw SceneError(loc, key, what + buf);
+  }
+}
+
+}  // namespace
+
+std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
+                                               const MaterialRegistry& registry) {
+  // The grid's node storage follows the particles. What covers the domain: its page table (one
+  // int per 4^3-node block), and at worst the sort's count per cell of the particles' box.
+  const Vec3 blocks = (scene.grid.dims + Vec3i::Constant(Grid::kBlockEdge))
+                          .cast<Real>() / Grid::kBlockEdge;
+  const double cells = scene.grid.dims.cast<double>().prod();
+  const std::string grid_name = "the grid of " + std::to_string(scene.grid.dims.x()) + " x " +
+                                std::to_string(scene.grid.dims.y()) + " x " +
+                                std::to_string(scene.grid.dims.z()) + " cells";
+  check_memory((blocks.prod() + cells) * sizeof(std::int32_t), scene.grid.loc, "grid.dims",
+               grid_name);
+  if (cells >= 4294967296.0)  // the sort's cell keys are 32-bit
+    throw SceneError(scene.grid.loc, "grid.dims",
+                     grid_name + " has more than 2^32 cells, the most the sort can key");
+  std::unique_ptr<Simulation> sim(new Simulation(scene));
+  Particles& P = sim->particles_;
+  const Vec3 h = scene.grid.spacing();
+  const Real cell_volume = h.prod();
+  const Vec3 interior_lo = scene.grid.origin + scene.grid.buffer * h;
+  const Vec3 interior_hi = scene.grid.max - scene.grid.buffer * h;
+
+  for (std::size_t o = 0; o < scene.objects.size(); ++o) {
+    const ObjectDesc& od = scene.objects[o];
+    const std::string key = "objects[" + std::to_string(o) + "]";
+    TriangleMesh mesh;
+    try {
+      mesh = load_mesh(od.mesh);
+    } catch (const MeshError& e) {
+      throw SceneError(od.mesh_loc, key + ".mesh", e.what());
+    }
+    if (const std::string why = closedness_problem(mesh); !why.empty())
+      throw SceneError(od.mesh_loc, key + ".mesh", "'" + od.mesh.string() + "': " + why);
+    transform_mesh(mesh, od.scale, od.rotation_deg, od.offset);
+    {  // Refuse before sampling an object whose particles could never fit in memory.
+      Eigen::AlignedBox<Real, 3> box;
+      for (const Vec3& v : mesh.vertices) box.extend(v);
+      const Vec3 cells = box.sizes().cwiseQuotient(h) + Vec3::Ones();
+      check_memory(cells.prod() * od.particles_per_cell * 400.0, od.loc, key,
+                   "object '" + od.name + "' at " + std::to_string(od.particles_per_cell) +
+                       " particles per cell");
+    }
+    const std::vector<Vec3> points =
+        sample_inside(mesh, scene.grid, od.particles_per_cell,
+                      od.sampling == Sampling::regular, scene.simulation.seed, o);
+    if (points.empty())
+      throw SceneError(od.loc, key, "object '" + od.name + "' samples zero particles");
+    for (const Vec3& x : points)
+      if ((x.array() < interior_lo.array()).any() || (x.array() > interior_hi.array()).any())
+        throw SceneError(od.loc, key + ".offset",
+                         "object '" + od.name +
+                             "' lies partly outside the grid interior (grid minus buffer)");
+
+    const std::size_t n = points.size();
+    const Real v0 = cell_volume / od.particles_per_cell;
+    const Real total_mass = od.mass ? *od.mass : *od.density * v0 * n;
+    const Real density = total_mass / (v0 * n);
+    ObjectInfo info{od.name, od.material, P.size(), n, total_mass, density};
+
+    // v = v0 + L (x - centroid), L = velocity_gradient + skew(angular_velocity).
+    Vec3 centroid = Vec3::Zero();
+    for (const Vec3& x : points) centroid += x / static_cast<Real>(n);
+    const Vec3& w = od.angular_velocity;
+    Mat3 L = od.velocity_gradient;
+    L += (Mat3() << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0).finished();
+    P.x.insert(P.x.end(), points.begin(), points.end());
+    for (const Vec3& x : points) P.v.push_back(od.velocity + L * (x - centroid));
+    if (scene.simulation.transfer == Transfer::apic) P.C.insert(P.C.end(), n, to_stored(L));
+    P.F.insert(P.F.end(), n, StoredMat3::Identity());
+    P.object.insert(P.object.end(), n, static_cast<std::uint32_t>(o));
+    P.object_mass.push_back(total_mass / n);
+    P.object_volume0.push_back(v0);
+
+    const MaterialInfo* mat = registry.find(od.material);
+    if (!mat) throw SceneError(od.loc, key + ".material", "unknown material '" + od.material + "'");
+    sim->materials_.push_back(
+        {info.first, n, mat->create(od.params, GroupInfo{density, n})});
+    sim->objects_.push_back(info);
+  }
+  P.stress.assign(P.size(), StoredMat3::Zero());
+  sim->walls_ = build_wall_planes(scene.walls);
+  sim->build_stages();
+  return sim;
+}
+
+void Simulation::build_stages() {
+  const SimulationDesc& s = scene_.simulation;
+  stages_.clear();
+  auto add = [&](std::string name, std::function<void(Real)> fn) {
+    stages_.push_back({std::move(name), std::move(fn), 0.0});
+  };
+  add("sort", [this](Real) { sort_particles(particles_, scene_.simulation.kernel, grid_, order_); });
+  add("compute_stress", [this](Real) {
+    for (auto& m : materials_)
+      m.material->compute_stress(slice(std::as_const(particles_.F), m),
+                                 particles_.volume0(m.first), slice(particles_.stress, m));
+  });
+  add("particles_to_grid",
+      [this](Real dt) {
+        const SimulationDesc& sd = scene_.simulation;
+        particles_to_grid(particles_, order_, sd.transfer, sd.kernel, dt, grid_);
+      });
+  add("grid_update", [this](Real) { grid_update(grid_); });
+  // PIC and APIC scatter the stress force as an impulse (see particles_to_grid).
+  if (s.transfer == Transfer::flip)
+    add("stress_forces", [this](Real dt) { apply_stress_forces(dt, grid_); });
+  if (s.gravity.squaredNorm() > 0)
+    add("gravity", [this](Real dt) { apply_gravity(dt, scene_.simulation.gravity, grid_); });
+  if (s.damping > 0)
+    add("damping", [this](Real dt) { apply_damping(dt, scene_.simulation.damping, grid_); });
+  // Walls act on the grid velocities of the end of the substep: place them at time + dt.
+  if (!walls_.empty())
+    add("walls", [this](Real dt) { wall_work_ += apply_walls(walls_, time_ + dt, grid_); });
+  add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
+  add("grid_to_particles", [this](Real dt) {
+    const SimulationDesc& sd = scene_.simulation;
+    grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_);
+  });
+  const bool plastic = std::any_of(materials_.begin(), materials_.end(),
+                                   [](const auto& m) { return m.material->has_plasticity(); });
+  if (plastic)
+    add("plasticity", [this](Real) {
+      for (auto& m : materials_)
+        if (m.material->has_plasticity()) m.material->apply_plasticity(slice(particles_.F, m));
+    });
+  add("advect", [this](Real dt) {
+    last_advect_ = advect_particles(dt, grid_, particles_);
+    clamped_total_ += last_advect_.clamped;
+  });
+}
+
+Real Simulation::cfl_bound(Real cfl) const {
+  Real c = 0;
+  for (const auto& m : materials_)
+    c = std::max(c, m.material->max_wave_speed(slice(particles_.F, m)));
+  // dt <= C h / (c + |v|max) (references.md, "Time step").
+  return cfl * grid_.h.minCoeff() / (c + max_speed());
+}
+
+Real Simulation::stable_dt() const {
+  const SimulationDesc& s = scene_.simulation;
+  if (!s.cfl) return *s.dt;
+  const Real bound = cfl_bound(*s.cfl);
+  return s.dt ? std::min(*s.dt, bound) : bound;
+}
+
+void Simulation::substep(Real dt) {
+  using clock = std::chrono::steady_clock;
+  for (Stage& st : stages_) {
+    const auto t0 = clock::now();
+    st.run(dt);
+    st.seconds += std::chrono::duration<double>(clock::now() - t0).count();
+  }
+  time_ += dt;
+  ++substeps_;
+}
+
+Real Simulation::max_speed() const {
+  Real v2 = 0;
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(particles_.size());
+#pragma omp parallel for schedule(static) reduction(max : v2) if (n >= kParallelMinItems)
+  for (std::ptrdiff_t q = 0; q < n; ++q) v2 = std::max(v2, particles_.v[q].squaredNorm());
+  return std::sqrt(v2);
+}
+
+Real Simulation::kinetic_energy() const {
+  Real e = 0;
+  for (std::size_t q = 0; q < particles_.size(); ++q)
+    e += 0.5 * particles_.mass(q) * particles_.v[q].squaredNorm();
+  return e;
+}
+
+Real Simulation::total_energy() const {
+  Real gravitational = 0;
+  const Vec3 g = scene_.simulation.gravity;
+  for (std::size_t q = 0; q < particles_.size(); ++q)
+    gravitational -= particles_.mass(q) * g.dot(particles_.x[q] - grid_.origin);
+  return kinetic_energy() + elastic_energy() + gravitational;
+}
+
+std::size_t Simulation::first_nonfinite_particle() const {
+  for (std::size_t q = 0; q < particles_.size(); ++q)
+    if (!particles_.x[q].allFinite() || !particles_.v[q].allFinite() ||
+        !particles_.F[q].allFinite())
+      return q;
+  return particles_.size();
+}
+
+std::size_t Simulation::fastest_particle() const {
+  std::size_t best = 0;
+  for (std::size_t q = 1; q < particles_.size(); ++q)
+    if (particles_.v[q].squaredNorm() > particles_.v[best].squaredNorm()) best = q;
+  return best;
+}
+
+Real Simulation::elastic_energy() const {
+  Real e = 0;
+  for (const auto& m : materials_)
+    e += m.material->elastic_energy(slice(particles_.F, m), particles_.volume0(m.first));
+  return e;
+}
+
+}  // namespace mpm

@@ -1,0 +1,125 @@
+#pragma once
+/// \file A simulation built from a scene: particles, grid, materials and the list of stages.
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "engine/step/grid.h"
+#include "engine/core/particles.h"
+#include "engine/scene/scene_desc.h"
+#include "engine/step/transfer.h"
+#include "engine/step/walls.h"
+#include "materials/registry.h"
+
+namespace mpm {
+
+/// One object after sampling: a contiguous range of particles.
+struct ObjectInfo {
+  std::string name;      ///< From the scene.
+  std::string material;  ///< Material name.
+  std::size_t first = 0; ///< First particle index.
+  std::size_t count = 0; ///< Number of particles.
+  Real mass = 0;         ///< Total mass, kg.
+  Real density = 0;      ///< Reference density, kg/m^3.
+};
+
+/// A contiguous particle range and the material that acts on it.
+struct MaterialRange {
+  std::size_t first = 0;                     ///< First particle index.
+  std::size_t count = 0;                     ///< Number of particles.
+  std::unique_ptr<MaterialGroup> material;   ///< Built by the registry.
+};
+
+/// A named step of the substep, with the time it has taken so far.
+struct Stage {
+  std::string name;                 ///< Name in reports, e.g. "particles_to_grid".
+  std::function<void(Real)> run;    ///< Runs the stage for a substep of dt.
+  double seconds = 0;               ///< Accumulated wall time.
+};
+
+/// Everything one run needs, built once from a validated scene.
+///
+/// The substep is the list of stages(): only the stages the scene calls for are in it.
+class Simulation {
+ public:
+  /// Samples every object's mesh and builds particles, grid, materials and stages.
+  /// Throws SceneError for a mesh that cannot be used or an object outside the grid.
+  static std::unique_ptr<Simulation> create(const SceneDesc& scene,
+                                            const MaterialRegistry& registry);
+
+  /// Largest substep allowed now: the CFL bound (if cfl is set) capped by the fixed dt.
+  Real stable_dt() const;
+  /// cfl h / (c + |v|max): the CFL bound for CFL number `cfl`, with c the largest wave speed
+  /// any material reports at the current F, s.
+  Real cfl_bound(Real cfl) const;
+  /// Advances by one substep of `dt` seconds, running every stage in order.
+  void substep(Real dt);
+
+  /// Particle state.
+  Particles& particles() { return particles_; }
+  /// Particle state.
+  const Particles& particles() const { return particles_; }
+  /// Grid state.
+  const Grid& grid() const { return grid_; }
+  /// The objects, in scene order.
+  const std::vector<ObjectInfo>& objects() const { return objects_; }
+  /// The material of each particle range.
+  const std::vector<MaterialRange>& materials() const { return materials_; }
+  /// The material of each particle range (for restoring checkpointed state).
+  std::vector<MaterialRange>& materials() { return materials_; }
+  /// The stages of a substep, in order.
+  const std::vector<Stage>& stages() const { return stages_; }
+  /// The scene this simulation was built from.
+  const SceneDesc& scene() const { return scene_; }
+
+  /// Simulated time, s.
+  Real time() const { return time_; }
+  /// Sets the simulated time (the driver snaps it to frame times).
+  void set_time(Real t) { time_ = t; }
+  /// Substeps taken so far.
+  std::size_t substeps() const { return substeps_; }
+  /// Sets the substep count (when restoring a checkpoint).
+  void set_substeps(std::size_t n) { substeps_ = n; }
+  /// What advection saw in the last substep (non-finite positions, clamps, top speed).
+  const AdvectStats& last_advect() const { return last_advect_; }
+  /// Total energy, J: kinetic + elastic + gravitational (relative to the grid origin).
+  Real total_energy() const;
+  /// Index of the first particle with a non-finite position, velocity or F, or size().
+  std::size_t first_nonfinite_particle() const;
+  /// Index of the fastest particle.
+  std::size_t fastest_particle() const;
+  /// The object particle `q` belongs to.
+  const ObjectInfo& object_of(std::size_t q) const { return objects_[particles_.object[q]]; }
+  /// Work done on the bodies by moving walls since the start, J.
+  Real wall_work() const { return wall_work_; }
+  /// Particles clamped back into the grid interior, over the whole run.
+  std::size_t clamped_particles() const { return clamped_total_; }
+  /// Largest particle speed, m/s.
+  Real max_speed() const;
+  /// Total kinetic energy, J.
+  Real kinetic_energy() const;
+  /// Total elastic energy stored in all materials, J.
+  Real elastic_energy() const;
+
+ private:
+  explicit Simulation(const SceneDesc& scene);
+  void build_stages();
+
+  SceneDesc scene_;
+  Particles particles_;
+  Grid grid_;
+  ParticleOrder order_;
+  std::vector<ObjectInfo> objects_;
+  std::vector<MaterialRange> materials_;
+  std::vector<WallPlane> walls_;
+  std::vector<Stage> stages_;
+  Real time_ = 0;
+  std::size_t substeps_ = 0;
+  AdvectStats last_advect_;
+  std::size_t clamped_total_ = 0;
+  Real wall_work_ = 0;
+};
+
+}  // namespace mpm

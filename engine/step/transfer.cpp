@@ -1,0 +1,314 @@
+#include "engine/step/transfer.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "engine/step/kernels.h"
+
+namespace mpm {
+
+namespace {
+
+/// Slab width (cells along x) so that slabs two apart never write the same node: a particle
+/// whose stencil base lies in slab s writes nodes up to W (s + 1) - 1 + (N - 1) < W (s + 2).
+int slab_width(Kernel k) { return std::max(2, kernel_nodes(k) - 1); }
+
+/// Gives storage to the grid blocks that hold a node of some particle's stencil: every
+/// non-empty cell (counts is the prefix sum over the cells of the box lo + [0, ext)) marks the
+/// blocks of its N^3 nodes.
+template <Kernel K>
+void activate_touched_blocks(const ParticleOrder& ord, const Vec3i& lo, const Vec3i& ext,
+                             Grid& grid) {
+  constexpr int N = KernelTraits<K>::kNodes, B = Grid::kBlockBits;
+  grid.release_blocks();
+  std::size_t c = 0;
+  for (int x = 0; x < ext.x(); ++x)
+    for (int y = 0; y < ext.y(); ++y)
+      for (int z = 0; z < ext.z(); ++z, ++c) {
+        if (ord.counts[c + 1] == ord.counts[c]) continue;
+        const Vec3i first = lo + Vec3i(x, y, z), last = first + Vec3i::Constant(N - 1);
+        for (int bi = first.x() >> B; bi <= last.x() >> B; ++bi)
+          for (int bj = first.y() >> B; bj <= last.y() >> B; ++bj)
+            for (int bk = first.z() >> B; bk <= last.z() >> B; ++bk)
+              grid.slot[grid.page(bi, bj, bk)] = 0;
+      }
+  const Vec3i hi = lo + ext - Vec3i::Ones() + Vec3i::Constant(N - 1);
+  grid.activate_blocks(Vec3i(lo.x() >> B, lo.y() >> B, lo.z() >> B),
+                       Vec3i(hi.x() >> B, hi.y() >> B, hi.z() >> B));
+}
+
+/// The counting sort of sort_particles for kernel K (dispatched once, not per particle).
+template <Kernel K>
+void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
+  const std::size_t n = p.size();
+  const auto base = [&](std::size_t i) { return stencil_base<K>(p.x[i], grid.origin, grid.inv_h); };
+  // Bounds of the stencil bases: the active nodes are [lo, hi + N - 1].
+  int lx = 1 << 30, ly = 1 << 30, lz = 1 << 30, hx = -(1 << 30), hy = hx, hz = hx;
+  const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(static) reduction(min : lx, ly, lz) \
+    reduction(max : hx, hy, hz) if (count >= kParallelMinItems)
+  for (std::ptrdiff_t i = 0; i < count; ++i) {
+    const Vec3i b = base(i);
+    lx = std::min(lx, b.x()), ly = std::min(ly, b.y()), lz = std::min(lz, b.z());
+    hx = std::max(hx, b.x()), hy = std::max(hy, b.y()), hz = std::max(hz, b.z());
+  }
+  const Vec3i lo(lx, ly, lz), hi(hx, hy, hz);
+  const Vec3i ext = hi - lo + Vec3i::Ones();
+
+  // Counting sort by base cell inside the active box (x slowest).
+  const std::size_t cells = static_cast<std::size_t>(ext.x()) * ext.y() * ext.z();
+  ord.counts.assign(cells + 1, 0);
+  std::vector<std::uint32_t>& keys = ord.keys;  // reused: no allocation per substep
+  keys.resize(n);
+#pragma omp parallel for schedule(static) if (count >= kParallelMinItems)
+  for (std::ptrdiff_t i = 0; i < count; ++i) {
+    const Vec3i b = base(i) - lo;
+    keys[i] = static_cast<std::uint32_t>((static_cast<std::size_t>(b.x()) * ext.y() + b.y()) *
+                                             ext.z() + b.z());
+  }
+  for (std::size_t i = 0; i < n; ++i) ++ord.counts[keys[i] + 1];
+  for (std::size_t c = 1; c <= cells; ++c) ord.counts[c] += ord.counts[c - 1];
+  activate_touched_blocks<K>(ord, lo, ext, grid);
+  const int width = slab_width(K);
+  const int slabs = (ext.x() + width - 1) / width;
+  ord.slab_start.resize(slabs + 1);
+  const std::size_t plane = static_cast<std::size_t>(ext.y()) * ext.z();
+  for (int s = 0; s <= slabs; ++s) {
+    const std::size_t x = std::min<std::size_t>(static_cast<std::size_t>(s) * width, ext.x());
+    ord.slab_start[s] = ord.counts[x * plane];
+  }
+  for (std::size_t i = 0; i < n; ++i) ord.order[ord.counts[keys[i]]++] = static_cast<std::uint32_t>(i);
+}
+
+}  // namespace
+
+void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& ord) {
+  ord.order.resize(p.size());
+  if (p.size() == 0) {
+    grid.release_blocks();
+    grid.activate_blocks(Vec3i::Zero(), -Vec3i::Ones());
+    ord.slab_start.assign(1, 0);
+    return;
+  }
+  dispatch_kernel(kernel, [&]<Kernel K>() { sort_by_cell<K>(p, grid, ord); });
+}
+
+namespace {
+
+/// The sums over the N^3 nodes of one stencil base cell, accumulated for all the particles
+/// of that cell before one write to the grid (kForce: FLIP's separate force).
+template <int N, bool kForce>
+struct CellSums {
+  static constexpr int kNodes = N * N * N;  ///< Nodes of the stencil.
+  Real mass[kNodes] = {};                   ///< Mass per node.
+  Vec3 momentum[kNodes];                    ///< Momentum (with the impulse unless kForce).
+  Vec3 force[kForce ? kNodes : 1];          ///< Stress force (FLIP only).
+  CellSums() {
+    for (Vec3& v : momentum) v.setZero();
+    for (Vec3& f : force) f.setZero();
+  }
+};
+
+/// Adds particle q, whose stencil is `s`, to its cell's sums. With kImpulse the stress force
+/// enters the momentum as the impulse dt f; otherwise (FLIP, which needs the velocity before
+/// forces) it is summed apart.
+template <Kernel K, bool kApic, bool kImpulse>
+void scatter_particle(const Particles& p, std::uint32_t q, Real dt, const Grid& g,
+                      const Stencil<KernelTraits<K>::kNodes>& s,
+                      CellSums<KernelTraits<K>::kNodes, !kImpulse>& sums) {
+  constexpr int N = KernelTraits<K>::kNodes;
+  const Real m = p.mass(q);
+  // Momentum at node (i, j, k): m v + m C (corner + (i, j, k) h) = a + i c0 + j c1 + k c2.
+  Vec3 a = m * p.v[q];
+  Mat3 c = Mat3::Zero();
+  if constexpr (kApic) {
+    const Mat3 mC = m * to_real(p.C[q]);
+    a += mC * (g.position(s.base.x(), s.base.y(), s.base.z()) - p.x[q]);
+    c = mC * g.h.asDiagonal();
+  }
+  const Mat3 S = (kImpulse ? dt : Real(1)) * to_real(p.stress[q]);
+  // Weights are products w0[i] w1[j] w2[k]. Per (i, j) row, with w01 = w0[i] w1[j]:
+  //   momentum  w2[k] w01 a_ij + k w2[k] w01 c2,    a_ij = a + i c0 + j c1,
+  //   force     w2[k] (dw0[i] w1[j] S0 + w0[i] dw1[j] S1) + dw2[k] w01 S2   (S grad w).
+  int n = 0;
+  for (int i = 0; i < N; ++i)
+    for (int j = 0; j < N; ++j) {
+      const Real w01 = s.w[0][i] * s.w[1][j];
+      const Vec3 mom = w01 * (a + i * c.col(0) + j * c.col(1));
+      const Vec3 mom_k = w01 * c.col(2);
+      const Vec3 f_w = s.dw[0][i] * s.w[1][j] * S.col(0) + s.w[0][i] * s.dw[1][j] * S.col(1);
+      const Vec3 f_dw = w01 * S.col(2);
+      const Real m01 = w01 * m;
+      for (int k = 0; k < N; ++k, ++n) {
+        const Real w2 = s.w[2][k], dw2 = s.dw[2][k];
+        sums.mass[n] += m01 * w2;
+        Vec3 dp = w2 * mom;
+        if constexpr (kApic) dp += (k * w2) * mom_k;
+        const Vec3 f = w2 * f_w + dw2 * f_dw;
+        if constexpr (kImpulse) {
+          sums.momentum[n] += dp + f;
+        } else {
+          sums.momentum[n] += dp;
+          sums.force[n] += f;
+        }
+      }
+    }
+}
+
+/// Scatters the sorted particles order[begin, end): each run of particles sharing a stencil
+/// base cell is summed locally, then added to the grid's nodes once.
+template <Kernel K, bool kApic, bool kImpulse>
+void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t begin,
+                   std::size_t end, Real dt, Grid& g) {
+  constexpr int N = KernelTraits<K>::kNodes;
+  using Sums = CellSums<N, !kImpulse>;
+  for (std::size_t q = begin; q < end;) {
+    const std::uint32_t cell = ord.keys[ord.order[q]];
+    Sums sums;
+    Vec3i base;
+    for (; q < end && ord.keys[ord.order[q]] == cell; ++q) {
+      const std::uint32_t i = ord.order[q];
+      const auto s = make_stencil<K>(p.x[i], g.origin, g.inv_h);
+      base = s.base;
+      scatter_particle<K, kApic, kImpulse>(p, i, dt, g, s, sums);
+    }
+    std::size_t nodes[Sums::kNodes];
+    g.stencil_indices<N>(base, nodes);
+    for (int n = 0; n < Sums::kNodes; ++n) {
+      g.mass[nodes[n]] += sums.mass[n];
+      g.velocity[nodes[n]] += sums.momentum[n];
+      if constexpr (!kImpulse) g.force[nodes[n]] += sums.force[n];
+    }
+  }
+}
+
+template <Kernel K, bool kApic, bool kImpulse>
+void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt, Grid& g) {
+  const int slabs = static_cast<int>(ord.slab_start.size()) - 1;
+  for (int color = 0; color < 2; ++color) {
+#pragma omp parallel for schedule(dynamic, 1) if (ord.order.size() >= kParallelMinItems)
+    for (int s = color; s < slabs; s += 2)
+      scatter_range<K, kApic, kImpulse>(p, ord, ord.slab_start[s], ord.slab_start[s + 1], dt, g);
+  }
+}
+
+}  // namespace
+
+void particles_to_grid(const Particles& p, const ParticleOrder& ord, Transfer transfer,
+                       Kernel kernel, Real dt, Grid& g) {
+  // The node arrays hold exactly the active blocks; clear all of them, padding included (a
+  // slot may have held another block before).
+  const std::ptrdiff_t nodes = static_cast<std::ptrdiff_t>(g.mass.size());
+#pragma omp parallel for schedule(static) if (nodes >= kParallelMinItems)
+  for (std::ptrdiff_t i = 0; i < nodes; ++i) {
+    g.mass[i] = 0;
+    g.velocity[i].setZero();
+    if (g.flip) g.force[i].setZero();
+  }
+  dispatch_kernel(kernel, [&]<Kernel K>() {
+    switch (transfer) {
+      case Transfer::apic: scatter_all<K, true, true>(p, ord, dt, g); break;
+      case Transfer::pic: scatter_all<K, false, true>(p, ord, dt, g); break;
+      case Transfer::flip: scatter_all<K, false, false>(p, ord, dt, g); break;
+    }
+  });
+}
+
+namespace {
+
+template <Kernel K, Transfer kTransfer>
+void gather_all(const Grid& g, Real flip_blend, Real dt, Particles& p) {
+  constexpr int N = KernelTraits<K>::kNodes;
+  constexpr int kStencil = N * N * N;
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
+  const Vec3 inv_D = KernelTraits<K>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+  for (std::ptrdiff_t q = 0; q < n; ++q) {
+    const auto s = make_stencil<K>(p.x[q], g.origin, g.inv_h);
+    std::size_t nodes[kStencil];
+    g.template stencil_indices<N>(s.base, nodes);
+    // Weights are products w0[i] w1[j] w2[k]: sum each (i, j) row over k first (r: with w2,
+    // dw2 and k w2), then the rows. Columns of `sums`: v, grad v (3), sum w v (i, j, k)^T (3).
+    Eigen::Matrix<Real, 3, 7> sums = Eigen::Matrix<Real, 3, 7>::Zero();
+    Vec3 dv = Vec3::Zero();  // FLIP: sum w (v - v_old)
+    int c = 0;
+    for (int i = 0; i < N; ++i)
+      for (int j = 0; j < N; ++j) {
+        Vec3 r0 = Vec3::Zero(), r1 = Vec3::Zero(), r2 = Vec3::Zero(), rd = Vec3::Zero();
+        for (int k = 0; k < N; ++k, ++c) {
+          const Vec3& vi = g.velocity[nodes[c]];
+          r0 += s.w[2][k] * vi;
+          r1 += s.dw[2][k] * vi;
+          if constexpr (kTransfer == Transfer::apic) r2 += (k * s.w[2][k]) * vi;
+          if constexpr (kTransfer == Transfer::flip)
+            rd += s.w[2][k] * (vi - g.velocity_old[nodes[c]]);
+        }
+        const Real w01 = s.w[0][i] * s.w[1][j];
+        sums.col(0) += w01 * r0;
+        sums.col(1) += (s.dw[0][i] * s.w[1][j]) * r0;
+        sums.col(2) += (s.w[0][i] * s.dw[1][j]) * r0;
+        sums.col(3) += w01 * r1;
+        if constexpr (kTransfer == Transfer::apic) {
+          sums.col(4) += (i * w01) * r0;
+          sums.col(5) += (j * w01) * r0;
+          sums.col(6) += w01 * r2;
+        }
+        if constexpr (kTransfer == Transfer::flip) dv += w01 * rd;
+      }
+    const Vec3 v = sums.col(0);
+    if constexpr (kTransfer == Transfer::flip)
+      p.v[q] = flip_blend * (p.v[q] + dv) + (1 - flip_blend) * v;
+    else
+      p.v[q] = v;
+    const Mat3 grad_v = sums.template middleCols<3>(1);
+    if constexpr (kTransfer == Transfer::apic) {
+      if constexpr (K == Kernel::linear) p.C[q] = to_stored(grad_v);
+      else {
+        // B = sum w v (x_i - x_p)^T = v (corner)^T + sum w v (i, j, k)^T diag(h).
+        const Vec3 corner = g.position(s.base.x(), s.base.y(), s.base.z()) - p.x[q];
+        const Mat3 B = v * corner.transpose() + sums.template rightCols<3>() * g.h.asDiagonal();
+        p.C[q] = to_stored(B * inv_D.asDiagonal());
+      }
+    }
+    // F <- (I + dt grad v) F (Stomakhin et al. 2013, eq. 7 with the elastic part only).
+    p.F[q] = to_stored((Mat3::Identity() + dt * grad_v) * to_real(p.F[q]));
+  }
+}
+
+}  // namespace
+
+void grid_to_particles(const Grid& g, Transfer transfer, Kernel kernel, Real flip_blend,
+                       Real dt, Particles& p) {
+  dispatch_kernel(kernel, [&]<Kernel K>() {
+    switch (transfer) {
+      case Transfer::apic: gather_all<K, Transfer::apic>(g, flip_blend, dt, p); break;
+      case Transfer::pic: gather_all<K, Transfer::pic>(g, flip_blend, dt, p); break;
+      case Transfer::flip: gather_all<K, Transfer::flip>(g, flip_blend, dt, p); break;
+    }
+  });
+}
+
+AdvectStats advect_particles(Real dt, const Grid& g, Particles& p) {
+  const Vec3 lo = g.origin + g.buffer * g.h;
+  const Vec3 hi = g.origin + (g.nodes - Vec3i::Ones() - Vec3i::Constant(g.buffer)).cast<Real>()
+                                 .cwiseProduct(g.h);
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
+  std::size_t clamped = 0, nonfinite = 0;
+  Real v2 = 0;
+#pragma omp parallel for schedule(static) reduction(+ : clamped, nonfinite) reduction(max : v2) \
+    if (n >= kParallelMinItems)
+  for (std::ptrdiff_t q = 0; q < n; ++q) {
+    v2 = std::max(v2, p.v[q].squaredNorm());
+    const Vec3 x = p.x[q] + dt * p.v[q];
+    if (!x.allFinite()) {
+      ++nonfinite;
+      continue;
+    }
+    const Vec3 c = x.cwiseMax(lo).cwiseMin(hi);
+    if (c != x) ++clamped;
+    p.x[q] = c;
+  }
+  return {clamped, nonfinite, std::sqrt(v2)};
+}
+
+}  // namespace mpm

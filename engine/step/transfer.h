@@ -1,0 +1,59 @@
+#pragma once
+/// \file Particle <-> grid transfers and the particle-side stages of a substep.
+
+#include <cstdint>
+#include <vector>
+
+#include "engine/step/grid.h"
+#include "engine/core/particles.h"
+#include "engine/scene/scene_desc.h"
+
+namespace mpm {
+
+/// Particles ordered by the grid cell of their stencil, with slabs for race-free scatter.
+///
+/// Slabs are a few cells thick along x. A particle in slab s writes only nodes of slabs s and
+/// s + 1, so all even slabs can scatter at once, then all odd ones, with no atomics. The slab
+/// width depends on the kernel only, not the thread count, so sums are the same for any count.
+struct ParticleOrder {
+  std::vector<std::uint32_t> order;     ///< Particle indices sorted by stencil base cell.
+  std::vector<std::size_t> slab_start;  ///< order[slab_start[s] .. slab_start[s+1]) is slab s.
+  std::vector<std::uint32_t> counts;    ///< Scratch for the counting sort.
+  std::vector<std::uint32_t> keys;      ///< Each particle's stencil base cell (particles_to_grid
+                                        ///< sums a cell's particles before writing its nodes).
+};
+
+/// Sorts particles by the base cell of `kernel`'s stencil and activates the grid blocks their
+/// stencils touch (Grid::activate_blocks). Slabs are wide enough for the kernel (2 cells, 3
+/// for cubic).
+void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& order);
+
+/// Clears the active nodes, then scatters mass, momentum (with the APIC affine term
+/// m C (x_i - x_p), Jiang et al. 2015 eq. 11) and the stress force
+/// f_i = -sum_p V0 tau_p grad w_ip (Jiang et al. 2016 course notes, eq. 189) to the grid.
+/// For PIC and APIC the force enters the momentum as the impulse dt f_i, so grid_update's
+/// v_i = (m v)_i / m_i is already v_i + dt f_i / m_i. FLIP keeps f_i in grid.force, to be
+/// applied after the velocity before forces is saved. The particles of one stencil base cell
+/// are summed locally and written to their nodes once.
+void particles_to_grid(const Particles& p, const ParticleOrder& order, Transfer transfer,
+                       Kernel kernel, Real dt, Grid& grid);
+
+/// Gathers velocity (PIC, FLIP blend, or APIC with C = B D^-1, D = h^2 / 4 quadratic, h^2 / 3
+/// cubic, Jiang et al. 2015 eq. 8-10) into the particles, and updates F <- (I + dt grad v) F
+/// with grad v = sum_i v_i grad w_ip^T (Stomakhin et al. 2013, eq. 7, elastic part), fused so
+/// the gradient is never stored. For the linear kernel APIC takes C = grad v (Jiang et al.
+/// 2015, section 5.3).
+void grid_to_particles(const Grid& grid, Transfer transfer, Kernel kernel, Real flip_blend,
+                       Real dt, Particles& p);
+
+/// What advection saw.
+struct AdvectStats {
+  std::size_t clamped = 0;    ///< Particles pushed back out of the buffer.
+  std::size_t nonfinite = 0;  ///< Particles with a NaN or infinite position (left as they were).
+  Real max_speed = 0;         ///< Largest particle speed, m/s.
+};
+
+/// x <- x + dt v, kept inside the grid interior (outside the buffer).
+AdvectStats advect_particles(Real dt, const Grid& grid, Particles& p);
+
+}  // namespace mpm

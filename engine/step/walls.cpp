@@ -1,0 +1,102 @@
+#include "engine/step/walls.h"
+
+#include <algorithm>
+
+namespace mpm {
+
+std::vector<WallPlane> build_wall_planes(const std::vector<WallDesc>& walls) {
+  std::vector<WallPlane> planes;
+  for (const WallDesc& w : walls) {
+    if (w.shape == WallDesc::Shape::plane) {
+      planes.push_back({w.point, w.normal, w.boundary, w.friction, w.velocity, w.path});
+      continue;
+    }
+    for (int a = 0; a < 3; ++a) {
+      const Vec3 n = Vec3::Unit(a);
+      planes.push_back({w.min, n, w.boundary, w.friction, w.velocity, w.path});
+      planes.push_back({w.max, -n, w.boundary, w.friction, w.velocity, w.path});
+    }
+  }
+  return planes;
+}
+
+Vec3 wall_velocity(const Vec3& v, const Vec3& n, Boundary b, Real friction) {
+  if (b == Boundary::sticky) return Vec3::Zero();
+  const Real vn = v.dot(n);
+  if (b == Boundary::separate && vn >= 0) return v;  // moving away: free to leave
+  Vec3 vt = v - vn * n;
+  if (friction > 0 && vn < 0) {
+    // Coulomb: the tangential speed drops by mu times the normal speed removed.
+    const Real t = vt.norm();
+    const Real drop = friction * -vn;
+    vt = t <= drop ? Vec3::Zero() : Vec3(vt * (1 - drop / t));
+  }
+  return vt;
+}
+
+Vec3 WallPlane::offset(Real t) const {
+  if (path.empty()) return t * velocity;
+  if (t <= path.front().t) return path.front().offset;
+  for (std::size_t k = 1; k < path.size(); ++k)
+    if (t <= path[k].t) {
+      const Real s = (t - path[k - 1].t) / (path[k].t - path[k - 1].t);
+      return (1 - s) * path[k - 1].offset + s * path[k].offset;
+    }
+  return path.back().offset;
+}
+
+Vec3 WallPlane::velocity_at(Real t) const {
+  if (path.empty()) return velocity;
+  for (std::size_t k = 1; k < path.size(); ++k)
+    if (t > path[k - 1].t && t <= path[k].t)
+      return (path[k].offset - path[k - 1].offset) / (path[k].t - path[k - 1].t);
+  return Vec3::Zero();
+}
+
+Real apply_walls(const std::vector<WallPlane>& planes, Real time, Grid& g) {
+  struct Placed {
+    Vec3 point, velocity;
+  };
+  std::vector<Placed> placed;
+  bool moving = false;
+  for (const WallPlane& w : planes) {
+    placed.push_back({w.point + w.offset(time), w.velocity_at(time)});
+    moving = moving || placed.back().velocity.squaredNorm() > 0;
+  }
+  // Work per block, summed in order afterwards so the total is the same for any thread count.
+  std::vector<Real> work(g.active_blocks(), 0);
+  for_each_active_node(g, [&](int i, int j, int k, std::size_t idx) {
+    if (g.mass[idx] <= 0) return;
+    const Vec3 x = g.position(i, j, k);
+    Vec3 v = g.velocity[idx];
+    Real node_work = 0;
+    for (std::size_t w = 0; w < planes.size(); ++w) {
+      const WallPlane& p = planes[w];
+      const Vec3& vw = placed[w].velocity;
+      if ((x - placed[w].point).dot(p.normal) > 0) continue;
+      const Vec3 after = vw + wall_velocity(v - vw, p.normal, p.boundary, p.friction);
+      // The wall's impulse on the node times the wall's velocity: zero for a wall at rest.
+      if (moving) node_work += g.mass[idx] * (after - v).dot(vw);
+      v = after;
+    }
+    g.velocity[idx] = v;
+    work[idx / Grid::kBlockNodes] += node_work;
+  });
+  Real total = 0;
+  for (Real w : work) total += w;
+  return total;
+}
+
+void apply_domain_boundary(Grid& g) {
+  const Vec3i last = g.nodes - Vec3i::Ones();
+  for_each_active_node(g, [&](int i, int j, int k, std::size_t idx) {
+    const Vec3i n(i, j, k);
+    Vec3& v = g.velocity[idx];
+    for (int a = 0; a < 3; ++a) {
+      if (n[a] <= g.buffer && v[a] < 0) v[a] = 0;
+      if (n[a] >= last[a] - g.buffer && v[a] > 0) v[a] = 0;
+    }
+  });
+}
+
+}  // namespace mpm

@@ -1,0 +1,41 @@
+#pragma once
+/// \file Wall conditions on grid velocities.
+
+#include <vector>
+
+#include "engine/step/grid.h"
+#include "engine/scene/scene_desc.h"
+
+namespace mpm {
+
+/// One half-space wall: nodes with (x - point) . normal <= 0 are inside it.
+struct WallPlane {
+  Vec3 point;          ///< A point on the plane, m.
+  Vec3 normal;         ///< Unit normal pointing into the free side.
+  Boundary boundary;   ///< Condition applied to nodes inside.
+  Real friction;       ///< Coulomb coefficient.
+  Vec3 velocity;       ///< Constant wall velocity, m/s (when path is empty).
+  std::vector<WallKey> path;  ///< Keyframed offsets, linear in between.
+
+  /// Displacement of the wall from `point` at time t, m.
+  Vec3 offset(Real t) const;
+  /// Velocity of the wall at time t, m/s.
+  Vec3 velocity_at(Real t) const;
+};
+
+/// The planes of every wall in the scene (a box gives six inward planes).
+std::vector<WallPlane> build_wall_planes(const std::vector<WallDesc>& walls);
+
+/// Applies each plane's condition, at time `time`, to the active nodes inside it. A moving
+/// wall's condition acts on the velocity relative to the wall. Returns the work (J) the
+/// moving walls did on the grid: sum_i m_i (v_i' - v_i) . v_wall.
+Real apply_walls(const std::vector<WallPlane>& planes, Real time, Grid& grid);
+
+/// Keeps velocities of nodes in the grid's boundary buffer from pointing outward.
+void apply_domain_boundary(Grid& grid);
+
+/// Velocity of a node after a wall condition: v with the normal part handled per `b`
+/// and Coulomb friction mu |v_n| taken off the tangential part.
+Vec3 wall_velocity(const Vec3& v, const Vec3& n, Boundary b, Real friction);
+
+}  // namespace mpm

@@ -1,0 +1,199 @@
+#include "engine/tools/bench.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <sstream>
+#include <stdexcept>
+
+#include <omp.h>
+
+#include "engine/tools/child_process.h"
+#include "engine/scene/load_scene.h"
+#include "engine/run/run.h"
+#include "engine/step/simulation.h"
+#include "engine/core/version.h"
+
+namespace mpm {
+
+namespace {
+
+/// A falling cube of `material` on a slip floor, sized for about `particles` particles at
+/// 8 per cell, in a grid whose side is `domain_scale` times the tight one.
+SceneDesc bench_scene(const std::string& material, long particles, double domain_scale) {
+  SceneDesc s;
+  s.file = "bench";
+  const double cells_per_side = std::cbrt(particles / 8.0);
+  const int dims = static_cast<int>(std::ceil((cells_per_side + 12) * domain_scale));
+  const double h = 1.0 / dims;
+  s.grid.dims = Vec3i::Constant(dims);
+  s.grid.max = Vec3::Ones();
+  s.simulation.dt = 1e-4;
+  ObjectDesc o;
+  o.name = "cube";
+  o.mesh = std::filesystem::path(MPM_SOURCE_DIR) / "scenes/meshes/cube.obj";
+  o.scale = Vec3::Constant(cells_per_side * h);
+  o.offset = Vec3(0.5, (5 + cells_per_side / 2) * h, 0.5);
+  o.velocity = Vec3(0, -1, 0);
+  o.density = material == "snow" ? 400 : 1000;
+  o.material = material;
+  o.params = {{"E", material == "snow" ? 1.4e5 : 1e5}, {"nu", 0.3}};
+  if (material == "snow")
+    o.params.insert({{"critical_compression", 2.5e-2}, {"critical_stretch", 7.5e-3},
+                     {"hardening", 10}, {"min_Jp", 0}});
+  s.objects.push_back(o);
+  WallDesc floor;
+  floor.point = Vec3(0, 4 * h, 0);
+  floor.boundary = Boundary::slip;
+  s.walls.push_back(floor);
+  return s;
+}
+
+/// The seeds' scenes/two_cubes.yaml as a whole run (all its frames, no output), timed once.
+BenchResult run_whole_scene(const std::string& name) {
+  MaterialRegistry registry = builtin_registry();
+  const SceneDesc scene = load_scene(std::filesystem::path(MPM_SOURCE_DIR) / "scenes" /
+                                         (name + ".yaml"), registry, LoadOptions{{}, false});
+  const auto sim = Simulation::create(scene, registry);
+  const RunResult run = run_frames(*sim, scene.simulation.frames, scene.simulation.frame_dt, {});
+  if (run.status != "ok") throw std::runtime_error(name + " ended " + run.status);
+  BenchResult r;
+  r.name = name;
+  r.particles = static_cast<long>(sim->particles().size());
+  r.grid_nodes = static_cast<long>(sim->grid().nodes.cast<double>().prod());
+  r.substeps = static_cast<int>(sim->substeps());
+  r.threads = omp_get_max_threads();
+  const double steps = static_cast<double>(r.particles) * r.substeps;
+  r.particle_steps_per_second = steps / run.loop_seconds;
+  for (const Stage& st : sim->stages()) r.stage_ns.emplace_back(st.name, st.seconds * 1e9 / steps);
+  r.stored_nodes = static_cast<long>(sim->grid().mass.size());
+  r.peak_rss_bytes_per_particle = peak_rss_bytes() / r.particles;
+  return r;
+}
+
+BenchResult run_case(const std::string& name, const BenchOptions& opt) {
+  if (name == "two_cubes") return run_whole_scene(name);
+  SceneDesc scene;
+  if (name == "jello") scene = bench_scene("corotated", opt.particles, 1);
+  else if (name == "snow") scene = bench_scene("snow", opt.particles, 1);
+  else if (name == "sparse") scene = bench_scene("corotated", opt.particles, 2);
+  else throw std::invalid_argument("unknown bench case '" + name + "'; expected jello, snow or sparse");
+  const auto sim = Simulation::create(scene, builtin_registry());
+  BenchResult r;
+  r.name = name;
+  r.particles = static_cast<long>(sim->particles().size());
+  r.grid_nodes = static_cast<long>(sim->grid().nodes.cast<double>().prod());
+  r.substeps = opt.substeps;
+  r.threads = omp_get_max_threads();
+  const Real dt = *scene.simulation.dt;
+  for (int s = 0; s < 2; ++s) sim->substep(dt);  // warm-up
+  std::vector<double> rates;
+  std::vector<std::vector<double>> stage_runs;
+  for (int rep = 0; rep < opt.repeats; ++rep) {
+    std::vector<double> before;
+    for (const Stage& st : sim->stages()) before.push_back(st.seconds);
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int s = 0; s < opt.substeps; ++s) sim->substep(dt);
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    rates.push_back(static_cast<double>(r.particles) * opt.substeps / secs);
+    std::vector<double> stage;
+    for (std::size_t i = 0; i < sim->stages().size(); ++i)
+      stage.push_back((sim->stages()[i].seconds - before[i]) * 1e9 /
+                      (static_cast<double>(r.particles) * opt.substeps));
+    stage_runs.push_back(stage);
+  }
+  // The median repetition by rate, and its stage breakdown.
+  std::vector<int> order(rates.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return rates[a] < rates[b]; });
+  const int mid = order[order.size() / 2];
+  r.particle_steps_per_second = rates[mid];
+  for (std::size_t i = 0; i < sim->stages().size(); ++i)
+    r.stage_ns.emplace_back(sim->stages()[i].name, stage_runs[mid][i]);
+  r.stored_nodes = static_cast<long>(sim->grid().mass.size());
+  r.peak_rss_bytes_per_particle = peak_rss_bytes() / r.particles;
+  return r;
+}
+
+std::string serialize(const BenchResult& r) {
+  std::ostringstream s;
+  s.precision(17);
+  s << r.name << ' ' << r.particles << ' ' << r.grid_nodes << ' ' << r.stored_nodes << ' '
+    << r.substeps << ' '
+    << r.threads << ' ' << r.particle_steps_per_second << ' ' << r.peak_rss_bytes_per_particle;
+  for (const auto& [n, v] : r.stage_ns) s << ' ' << n << ' ' << v;
+  return s.str();
+}
+
+BenchResult deserialize(const std::string& text) {
+  std::istringstream s(text);
+  BenchResult r;
+  s >> r.name >> r.particles >> r.grid_nodes >> r.stored_nodes >> r.substeps >> r.threads >>
+      r.particle_steps_per_second >> r.peak_rss_bytes_per_particle;
+  std::string n;
+  double v;
+  while (s >> n >> v) r.stage_ns.emplace_back(n, v);
+  return r;
+}
+
+}  // namespace
+
+std::vector<BenchResult> run_benchmarks(const BenchOptions& opt) {
+  if (opt.threads > 0) omp_set_num_threads(opt.threads);
+  std::vector<BenchResult> out;
+  for (const std::string& name : opt.cases) {
+    if (name != "jello" && name != "snow" && name != "sparse" && name != "two_cubes")
+      throw std::invalid_argument("unknown bench case '" + name +
+                                  "'; expected jello, snow, sparse or two_cubes");
+    const std::string text =
+        run_in_child([&] { return serialize(run_case(name, opt)) + "\n"; }, "bench case '" + name + "'");
+    out.push_back(deserialize(text));
+  }
+  return out;
+}
+
+std::string format_bench_table(const std::vector<BenchResult>& results) {
+  std::ostringstream s;
+  char line[512];
+  std::snprintf(line, sizeof line, "mpm bench  (particle matrices stored in %s, arithmetic in double; commit %s)\n",
+                kStoredPrecision, git_commit());
+  s << line;
+  std::snprintf(line, sizeof line, "%-9s %10s %10s %10s %8s %7s %14s %10s\n", "case",
+                "particles", "nodes", "stored", "substeps", "threads", "Mparticle-st/s",
+                "B/particle");
+  s << line;
+  for (const BenchResult& r : results) {
+    std::snprintf(line, sizeof line, "%-9s %10ld %10ld %10ld %8d %7d %14.3f %10.0f\n",
+                  r.name.c_str(), r.particles, r.grid_nodes, r.stored_nodes, r.substeps, r.threads,
+                  r.particle_steps_per_second / 1e6, r.peak_rss_bytes_per_particle);
+    s << line;
+  }
+  s << "\nns per particle-step by stage\n";
+  for (const BenchResult& r : results) {
+    s << r.name << ":";
+    for (const auto& [n, v] : r.stage_ns) {
+      std::snprintf(line, sizeof line, " %s %.1f", n.c_str(), v);
+      s << line;
+    }
+    s << "\n";
+  }
+  return s.str();
+}
+
+std::string format_bench_csv(const std::vector<BenchResult>& results) {
+  std::ostringstream s;
+  s << "case,particles,grid_nodes,stored_nodes,substeps,threads,precision,commit,"
+       "particle_steps_per_second,"
+       "peak_rss_bytes_per_particle,stage,ns_per_particle_step\n";
+  for (const BenchResult& r : results)
+    for (const auto& [n, v] : r.stage_ns)
+      s << r.name << ',' << r.particles << ',' << r.grid_nodes << ',' << r.stored_nodes << ','
+        << r.substeps << ',' << r.threads << ',' << kStoredPrecision << ',' << git_commit()
+        << ',' << r.particle_steps_per_second << ',' << r.peak_rss_bytes_per_particle << ',' << n
+        << ',' << v << '\n';
+  return s.str();
+}
+
+}  // namespace mpm

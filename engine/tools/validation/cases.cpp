@@ -1,0 +1,408 @@
+#include "engine/tools/validation/cases.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "engine/step/kernels.h"
+#include "engine/step/simulation.h"
+
+namespace mpm::validation {
+
+const Measure& Outcome::measure(const std::string& name) const {
+  for (const Measure& m : measures)
+    if (m.name == name) return m;
+  throw std::out_of_range("no measure '" + name + "'");
+}
+
+Vec3 linear_momentum(const Simulation& sim) {
+  const Particles& p = sim.particles();
+  Vec3 P = Vec3::Zero();
+  for (std::size_t q = 0; q < p.size(); ++q) P += p.mass(q) * p.v[q];
+  return P;
+}
+
+Vec3 angular_momentum(const Simulation& sim) {
+  const Particles& p = sim.particles();
+  const Grid& g = sim.grid();
+  const bool apic = !p.C.empty();
+  Vec3 L = Vec3::Zero();
+  for (std::size_t q = 0; q < p.size(); ++q) {
+    L += p.mass(q) * p.x[q].cross(p.v[q]);
+    if (!apic) continue;
+    // D_p = sum_i w_ip (x_i - x_p)(x_i - x_p)^T of the scene's kernel.
+    const Mat3 D = dispatch_kernel(sim.scene().simulation.kernel, [&]<Kernel K>() {
+      constexpr int N = KernelTraits<K>::kNodes;
+      const auto s = make_stencil<K>(p.x[q], g.origin, g.inv_h);
+      Mat3 d = Mat3::Zero();
+      for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j)
+          for (int k = 0; k < N; ++k) {
+            const Vec3 r = g.position(s.base.x() + i, s.base.y() + j, s.base.z() + k) - p.x[q];
+            d += s.weight(i, j, k) * r * r.transpose();
+          }
+      return d;
+    });
+    const Mat3 B = to_real(p.C[q]) * D;  // L_a += m eps_abc B_cb
+    L += p.mass(q) * Vec3(B(2, 1) - B(1, 2), B(0, 2) - B(2, 0), B(1, 0) - B(0, 1));
+  }
+  return L;
+}
+
+namespace {
+
+/// The box a unit-cube mesh (scenes/meshes/cube.obj) fills after the object's scale and offset.
+struct Box {
+  Vec3 min, max;
+};
+Box cube_box(const ObjectDesc& o) {
+  if (o.rotation_deg.norm() != 0 || o.mesh.filename() != "cube.obj")
+    throw std::invalid_argument("validation object '" + o.name +
+                                "' must be meshes/cube.obj without rotation");
+  return {o.offset - 0.5 * o.scale.cwiseAbs(), o.offset + 0.5 * o.scale.cwiseAbs()};
+}
+
+double param(const ObjectDesc& o, const std::string& key) {
+  const auto it = o.params.find(key);
+  if (it == o.params.end()) throw std::invalid_argument("object has no parameter " + key);
+  return it->second;
+}
+
+/// Cauchy stress sigma = tau / J of particle q (compute_stress stored -V0 tau).
+Mat3 cauchy_stress(const Particles& p, std::size_t q) {
+  return -to_real(p.stress[q]) / (p.volume0(q) * to_real(p.F[q]).determinant());
+}
+
+/// Mass-weighted mean of a per-particle vector `field` (e.g. Particles::x) over one object.
+Vec3 object_mean(const Simulation& sim, std::size_t object, std::vector<Vec3> Particles::*field) {
+  const ObjectInfo& o = sim.objects()[object];
+  const Particles& p = sim.particles();
+  Vec3 sum = Vec3::Zero();
+  for (std::size_t q = o.first; q < o.first + o.count; ++q) sum += p.mass(q) * (p.*field)[q];
+  return sum / o.mass;
+}
+
+Vec3 centroid(const Simulation& sim, std::size_t object) {
+  return object_mean(sim, object, &Particles::x);
+}
+
+Vec3 mean_velocity(const Simulation& sim, std::size_t object) {
+  return object_mean(sim, object, &Particles::v);
+}
+
+double rms(const std::vector<double>& e) {
+  double s = 0;
+  for (double x : e) s += x * x;
+  return e.empty() ? 0 : std::sqrt(s / e.size());
+}
+
+/// 1. Free fall and projectile: x(t) = x0 + v0 t + g t^2 / 2 for every object's centre of mass.
+/// Symplectic Euler with a fixed dt lands at x(t) + g dt t / 2 exactly, reported as
+/// "scheme_error".
+class FreeFall final : public Probe {
+ public:
+  void on_start(const Simulation& sim, int) override {
+    for (std::size_t o = 0; o < sim.objects().size(); ++o) {
+      x0_.push_back(centroid(sim, o));
+      v0_.push_back(mean_velocity(sim, o));
+    }
+  }
+  void score(const Simulation& sim, Outcome& out) override {
+    const double t = sim.time();
+    const Vec3 g = sim.scene().simulation.gravity;
+    double err = 0, travel = 0;
+    for (std::size_t o = 0; o < x0_.size(); ++o) {
+      const Vec3 exact = x0_[o] + v0_[o] * t + 0.5 * g * t * t;
+      err = std::max(err, (centroid(sim, o) - exact).norm());
+      travel = std::max(travel, (exact - x0_[o]).norm());
+    }
+    out.error_name = "centre-of-mass position error / distance travelled";
+    out.error = err / travel;
+    out.measures.push_back({"position_error", err, 0, "m"});
+    if (const auto& dt = sim.scene().simulation.dt; dt && !sim.scene().simulation.cfl)
+      out.measures.push_back({"scheme_error", err, 0.5 * g.norm() * *dt * t, "m"});
+  }
+
+ private:
+  std::vector<Vec3> x0_, v0_;
+};
+
+/// 2. An elastic block (nu = 0) settled on a sticky floor: sigma_yy(Y) = -rho g (H - Y) and
+/// u_y(Y) = -(rho g / E) (H Y - Y^2 / 2) in the reference height Y above the floor. With nu = 0
+/// both are exact for fixed corotated at any strain (sigma = E (lambda - 1) in uniaxial strain).
+class RestingColumn final : public Probe {
+ public:
+  void on_start(const Simulation& sim, int) override { X0_ = sim.particles().x; }
+  void score(const Simulation& sim, Outcome& out) override {
+    const ObjectDesc& od = sim.scene().objects.at(0);
+    const Box box = cube_box(od);
+    const double H = box.max.y() - box.min.y();
+    const double rho = sim.objects()[0].density, E = param(od, "E");
+    const double g = -sim.scene().simulation.gravity.y();
+    const double u_top = rho * g * H * H / (2 * E);
+    const Particles& p = sim.particles();
+    std::vector<double> du, dsig;
+    double top_u = 0, top_exact = 0;
+    int top = 0;
+    for (std::size_t q = 0; q < p.size(); ++q) {
+      const double Y = X0_[q].y() - box.min.y();
+      const double u_exact = -(rho * g / E) * (H * Y - 0.5 * Y * Y);
+      const double u = p.x[q].y() - X0_[q].y();
+      du.push_back((u - u_exact) / u_top);
+      dsig.push_back((cauchy_stress(p, q)(1, 1) + rho * g * (H - Y)) / (rho * g * H));
+      if (Y > 0.9 * H) top_u += u, top_exact += u_exact, ++top;
+    }
+    out.error_name = "settled height error / exact settlement";
+    out.error = std::abs(top_u - top_exact) / top / u_top;
+    out.measures.push_back({"top_settlement", -top_u / top, -top_exact / top, "m"});
+    out.measures.push_back({"displacement_rms_error", rms(du), 0, ""});
+    out.measures.push_back({"stress_rms_error", rms(dsig), 0, ""});
+  }
+
+ private:
+  std::vector<Vec3> X0_;
+};
+
+/// 3. A free-free bar along x (nu = 0) given v = a (x - centre): its first mode has period
+/// T = 2 L / sqrt(E / rho). The mode is tracked as q(t) = sum_p m_p u_x,p cos(pi X_p / L), whose
+/// zero crossings fall at k T / 2; energy drift is (E(t) - E(0)) / E(0).
+class BarVibration final : public Probe {
+ public:
+  void on_start(const Simulation& sim, int) override {
+    const Particles& p = sim.particles();
+    box_ = cube_box(sim.scene().objects.at(0));
+    const double L = box_.max.x() - box_.min.x();
+    for (std::size_t i = 0; i < p.size(); ++i) {  // q = sum_p w_p (x_p - X_p), fixed weights
+      X0_.push_back(p.x[i].x());
+      mode_.push_back(p.mass(i) * std::cos(M_PI * (p.x[i].x() - box_.min.x()) / L));
+    }
+    energy0_ = sim.total_energy();
+    energy_.name = "energy / initial energy";
+    energy_.t.push_back(0);
+    energy_.value.push_back(1);
+  }
+  void on_substep(const Simulation& sim, int) override {
+    const Particles& p = sim.particles();
+    double q = 0;
+    for (std::size_t i = 0; i < p.size(); ++i) q += mode_[i] * (p.x[i].x() - X0_[i]);
+    const double t = sim.time();
+    if (!q_.empty() && q_.back() != 0 && q != 0 && (q_.back() > 0) != (q > 0))
+      crossings_.push_back(t_.back() + (t - t_.back()) * q_.back() / (q_.back() - q));
+    t_.push_back(t);
+    q_.push_back(q);
+  }
+  void on_frame(const Simulation& sim, int) override {
+    energy_.t.push_back(sim.time());
+    energy_.value.push_back(sim.total_energy() / energy0_);
+  }
+  void score(const Simulation& sim, Outcome& out) override {
+    const ObjectDesc& od = sim.scene().objects.at(0);
+    const double L = box_.max.x() - box_.min.x();
+    const double T_exact = 2 * L / std::sqrt(param(od, "E") / sim.objects()[0].density);
+    // Least-squares fit of crossing k at k T / 2.
+    double sk2 = 0, skt = 0;
+    for (std::size_t k = 0; k < crossings_.size(); ++k) {
+      sk2 += (k + 1.0) * (k + 1.0);
+      skt += (k + 1.0) * crossings_[k];
+    }
+    const double T = crossings_.empty() ? 0 : 2 * skt / sk2;
+    out.error_name = "first-mode period relative error";
+    out.error = crossings_.empty() ? 1 : std::abs(T - T_exact) / T_exact;
+    out.measures.push_back({"period", T, T_exact, "s"});
+    out.measures.push_back({"half_periods_seen", double(crossings_.size()), 0, ""});
+    out.measures.push_back({"energy_drift", sim.total_energy() / energy0_ - 1, 0, ""});
+    out.series.push_back(energy_);
+  }
+
+ private:
+  std::vector<double> X0_, mode_;  // reference x, and m cos(pi X / L) per particle
+  Box box_;
+  double energy0_ = 0;
+  std::vector<double> t_, q_, crossings_;
+  Series energy_;
+};
+
+/// 4. Two elastic spheres colliding head-on (after Sulsky, Chen, Schreyer 1994, section 5):
+/// linear momentum is conserved to round-off; kinetic energy dips in contact and recovers;
+/// the spheres separate.
+class Collision final : public Probe {
+ public:
+  void on_start(const Simulation& sim, int) override {
+    P0_ = linear_momentum(sim);
+    ke0_ = ke_min_ = sim.kinetic_energy();
+    const ObjectInfo& o = sim.objects()[0];
+    scale_ = o.mass * mean_velocity(sim, 0).norm();
+    kinetic_.name = "kinetic energy / initial";
+    kinetic_.t.push_back(0);
+    kinetic_.value.push_back(1);
+  }
+  void on_substep(const Simulation& sim, int) override {
+    drift_ = std::max(drift_, (linear_momentum(sim) - P0_).norm() / scale_);
+    ke_min_ = std::min(ke_min_, sim.kinetic_energy());
+  }
+  void on_frame(const Simulation& sim, int) override {
+    kinetic_.t.push_back(sim.time());
+    kinetic_.value.push_back(sim.kinetic_energy() / ke0_);
+  }
+  void score(const Simulation& sim, Outcome& out) override {
+    const Vec3 d = centroid(sim, 1) - centroid(sim, 0);
+    const Vec3 dv = mean_velocity(sim, 1) - mean_velocity(sim, 0);
+    out.error_name = "largest linear momentum drift / momentum of one sphere";
+    out.error = drift_;
+    out.measures.push_back({"momentum_drift", drift_, 0, ""});
+    out.measures.push_back({"kinetic_min_ratio", ke_min_ / ke0_, 1, ""});
+    out.measures.push_back({"kinetic_end_ratio", sim.kinetic_energy() / ke0_, 1, ""});
+    out.measures.push_back({"separating_speed", dv.dot(d.normalized()), 0, "m/s"});
+    out.series.push_back(kinetic_);
+  }
+
+ private:
+  Vec3 P0_;
+  double ke0_ = 0, ke_min_ = 0, scale_ = 1, drift_ = 0;
+  Series kinetic_;
+};
+
+/// 5. A spinning cube without gravity: APIC keeps the total angular momentum to round-off
+/// (Jiang et al. 2015, section 5.3); PIC loses it; FLIP lies between.
+class SpinningCube final : public Probe {
+ public:
+  void on_start(const Simulation& sim, int) override {
+    L0_ = angular_momentum(sim);
+    series_.name = "angular momentum / initial";
+    series_.t.push_back(0);
+    series_.value.push_back(1);
+  }
+  void on_frame(const Simulation& sim, int) override {
+    series_.t.push_back(sim.time());
+    series_.value.push_back(angular_momentum(sim).dot(L0_) / L0_.squaredNorm());
+  }
+  void score(const Simulation& sim, Outcome& out) override {
+    const Vec3 L = angular_momentum(sim);
+    out.error_name = "angular momentum drift |L - L0| / |L0|";
+    out.error = (L - L0_).norm() / L0_.norm();
+    out.measures.push_back({"angular_momentum_ratio", L.dot(L0_) / L0_.squaredNorm(), 1, ""});
+    out.series.push_back(series_);
+  }
+
+ private:
+  Vec3 L0_;
+  Series series_;
+};
+
+/// Uniaxial Cauchy stress of the compressible Neo-Hookean model of materials/neo_hookean.h
+/// (tau = mu (F F^T - I) + lambda ln J I) at axial stretch `a`, lateral faces traction-free:
+/// the lateral stretch b solves mu (b^2 - 1) + lambda ln(a b^2) = 0 (bisection; it is monotone).
+double neo_hookean_uniaxial_stress(double mu, double lambda, double a) {
+  double lo = 1e-3, hi = 1e3;
+  for (int i = 0; i < 200; ++i) {
+    const double b = 0.5 * (lo + hi);
+    (mu * (b * b - 1) + lambda * std::log(a * b * b) > 0 ? hi : lo) = b;
+  }
+  const double b = 0.5 * (lo + hi), J = a * b * b;
+  return (mu * (a * a - 1) + lambda * std::log(J)) / J;
+}
+
+/// 6. A Neo-Hookean block squeezed between two slip walls: mean sigma_yy against the uniaxial
+/// answer at the measured stretch. Both are taken away from the walls, whose grid nodes act on
+/// the particles within 1.5 cells: the stretch from two bands of particles at 20-30 % and
+/// 70-80 % of the reference height, the stress as the mean over the particles between them.
+class UniaxialCompression final : public Probe {
+ public:
+  void on_start(const Simulation& sim, int) override {
+    const Particles& p = sim.particles();
+    double lo = 1e300, hi = -1e300;
+    for (const Vec3& x : p.x) lo = std::min(lo, x.y()), hi = std::max(hi, x.y());
+    for (std::size_t q = 0; q < p.size(); ++q) {
+      const double Y = (p.x[q].y() - lo) / (hi - lo);
+      if (Y > 0.2 && Y < 0.3) lower_.push_back(q);
+      if (Y > 0.7 && Y < 0.8) upper_.push_back(q);
+      if (Y > 0.2 && Y < 0.8) middle_.push_back(q);
+    }
+    gap0_ = gap(sim);
+    stress_.name = "mean sigma_yy / exact";
+  }
+  void on_frame(const Simulation& sim, int) override {
+    const auto [s, exact] = stresses(sim);
+    stress_.t.push_back(sim.time());
+    stress_.value.push_back(s / exact);
+  }
+  void score(const Simulation& sim, Outcome& out) override {
+    const auto [s, exact] = stresses(sim);
+    out.error_name = "mean axial stress relative error at the final stretch";
+    out.error = std::abs(s - exact) / std::abs(exact);
+    out.measures.push_back({"stretch", gap(sim) / gap0_, 0, ""});
+    out.measures.push_back({"sigma_yy", s, exact, "Pa"});
+    out.series.push_back(stress_);
+  }
+
+ private:
+  double mean_y(const Simulation& sim, const std::vector<std::size_t>& band) const {
+    double y = 0;
+    for (std::size_t q : band) y += sim.particles().x[q].y();
+    return y / band.size();
+  }
+  double gap(const Simulation& sim) const { return mean_y(sim, upper_) - mean_y(sim, lower_); }
+  std::pair<double, double> stresses(const Simulation& sim) const {
+    const ObjectDesc& od = sim.scene().objects.at(0);
+    const Lame lame = lame_from_young(param(od, "E"), param(od, "nu"));
+    double s = 0;
+    for (std::size_t q : middle_) s += cauchy_stress(sim.particles(), q)(1, 1);
+    return {s / middle_.size(), neo_hookean_uniaxial_stress(lame.mu, lame.lambda, gap(sim) / gap0_)};
+  }
+  std::vector<std::size_t> lower_, upper_, middle_;
+  double gap0_ = 1;
+  Series stress_;
+};
+
+template <class P>
+Probe* make() {
+  return new P;
+}
+
+}  // namespace
+
+const std::vector<Case>& cases() {
+  static const std::vector<Case> all = {
+      {"free_fall", "centre of mass of a dropped and a thrown block against x0 + v0 t + g t^2 / 2",
+       make<FreeFall>},
+      {"resting_column", "settled block on a sticky floor against sigma_yy = -rho g (H - Y)",
+       make<RestingColumn>},
+      {"bar_vibration", "free-free bar's first-mode period against T = 2 L / sqrt(E / rho)",
+       make<BarVibration>},
+      {"sphere_collision", "two elastic spheres head-on: momentum, kinetic energy, separation",
+       make<Collision>},
+      {"spinning_cube", "angular momentum of a spinning cube with no gravity", make<SpinningCube>},
+      {"uniaxial_compression", "Neo-Hookean block between slip walls against uniaxial stress",
+       make<UniaxialCompression>},
+  };
+  return all;
+}
+
+const Case* find_case(const std::string& name) {
+  for (const Case& c : cases())
+    if (c.name == name) return &c;
+  return nullptr;
+}
+
+std::filesystem::path scene_path(const Case& c) {
+  return std::filesystem::path(MPM_SOURCE_DIR) / "scenes" / "validation" / (c.name + ".yaml");
+}
+
+Outcome run_case(const Case& c, const std::vector<SceneOverride>& overrides) {
+  MaterialRegistry registry = builtin_registry();
+  const SceneDesc scene = load_scene(scene_path(c), registry, LoadOptions{overrides, false});
+  std::unique_ptr<Simulation> sim = Simulation::create(scene, registry);
+  std::unique_ptr<Probe> probe(c.make_probe());
+  const RunResult r = run_frames(*sim, scene.simulation.frames, scene.simulation.frame_dt,
+                                 {probe.get()});
+  Outcome out;
+  out.status = r.status;
+  out.particles = sim->particles().size();
+  out.substeps = sim->substeps();
+  out.seconds = r.loop_seconds;
+  probe->score(*sim, out);
+  return out;
+}
+
+}  // namespace mpm::validation

@@ -1,0 +1,338 @@
+#include "engine/tools/validation/study.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <stdexcept>
+
+#include <omp.h>
+
+#include "engine/tools/child_process.h"
+#include "engine/core/error.h"
+#include "engine/io/atomic_file.h"
+
+namespace mpm::validation {
+
+namespace {
+
+/// A sweep: one case over a list of settings.
+struct Experiment {
+  std::string name;
+  std::string case_name;
+  std::vector<Setting> full, quick;
+};
+
+std::vector<Setting> over_refine(std::vector<int> levels, Setting base = {}) {
+  std::vector<Setting> out;
+  for (int r : levels) {
+    Setting s = base;
+    s.refine = r;
+    out.push_back(s);
+  }
+  return out;
+}
+
+/// Every kernel over `levels` on the scene's (regular) lattice, then quadratic jittered.
+std::vector<Setting> over_kernels_and_refine(std::vector<int> levels) {
+  std::vector<Setting> out;
+  for (const char* k : {"linear", "quadratic", "cubic"})
+    for (Setting s : over_refine(levels)) {
+      s.kernel = k;
+      out.push_back(s);
+    }
+  for (Setting s : over_refine(levels)) {
+    s.sampling = "jittered";
+    out.push_back(s);
+  }
+  return out;
+}
+
+std::vector<Setting> over_transfers(Setting base) {
+  std::vector<Setting> out;
+  for (auto [t, blend] : {std::pair{"pic", 0.0}, {"flip", 0.95}, {"flip", 0.99}, {"apic", 0.0}}) {
+    Setting s = base;
+    s.transfer = t;
+    if (blend > 0) s.flip_blend = blend;
+    out.push_back(s);
+  }
+  return out;
+}
+
+template <class T, class Fn>
+std::vector<Setting> over(std::vector<T> values, Setting base, Fn set) {
+  std::vector<Setting> out;
+  for (const T& v : values) {
+    Setting s = base;
+    set(s, v);
+    out.push_back(s);
+  }
+  return out;
+}
+
+/// 1, 8 and 27 particles per cell, each on a lattice and jittered.
+std::vector<Setting> ppc_sweep(Setting base) {
+  std::vector<Setting> out;
+  for (int n : {1, 8, 27})
+    for (const char* sampling : {"regular", "jittered"}) {
+      Setting s = base;
+      s.ppc = n;
+      s.sampling = sampling;
+      out.push_back(s);
+    }
+  return out;
+}
+
+const std::vector<Experiment>& experiments() {
+  static const std::vector<Experiment> all = [] {
+    Setting bar4;
+    bar4.refine = 4;
+    Setting bar2;
+    bar2.refine = 2;
+    Setting short_bar = bar2;
+    short_bar.frames = 12;  // three periods
+    // The scene caps dt at 1e-3 s, which binds above cfl 0.4 at h = L/40: lift the cap.
+    const auto set_cfl = [](Setting& s, double c) {
+      s.cfl = c;
+      s.dt = 1.0;
+    };
+    const auto set_dt = [](Setting& s, double dt) { s.dt = dt; };
+    std::vector<Setting> quick_h = over_refine({1, 2, 4});
+    for (Setting& s : quick_h) s.frames = 12;
+    return std::vector<Experiment>{
+        {"h_convergence", "bar_vibration", over_kernels_and_refine({1, 2, 4, 8}), quick_h},
+        {"ppc", "bar_vibration", ppc_sweep(bar4), ppc_sweep(short_bar)},
+        {"cfl", "bar_vibration", over<double>({0.1, 0.2, 0.4, 0.8}, bar4, set_cfl),
+         over<double>({0.2, 0.8}, short_bar, set_cfl)},
+        {"transfer_bar", "bar_vibration", over_transfers(bar4), {}},
+        {"transfer_spin", "spinning_cube", over_transfers({}), over_transfers({})},
+        {"dt", "free_fall", over<double>({4e-3, 2e-3, 1e-3, 5e-4}, {}, set_dt),
+         over<double>({2e-3, 1e-3}, {}, set_dt)},
+        {"column_h", "resting_column", over_refine({1, 2, 4}), {}},
+        {"collision", "sphere_collision", over_transfers({}), over_refine({1})},
+        {"compression", "uniaxial_compression", over_refine({1, 2}), {}},
+    };
+  }();
+  return all;
+}
+
+std::string text(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+/// The --set overrides for `s` on a scene whose grid has `dims` cells.
+std::vector<SceneOverride> overrides_for(const Setting& s, const SceneDesc& scene) {
+  std::vector<SceneOverride> o;
+  const Vec3i d = scene.grid.dims * s.refine;
+  o.push_back({"grid.dims", "[" + std::to_string(d.x()) + ", " + std::to_string(d.y()) + ", " +
+                                std::to_string(d.z()) + "]"});
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    const std::string obj = "objects[" + std::to_string(i) + "].";
+    if (s.ppc) o.push_back({obj + "particles_per_cell", std::to_string(*s.ppc)});
+    if (s.sampling) o.push_back({obj + "sampling", *s.sampling});
+  }
+  if (s.cfl) o.push_back({"simulation.cfl", text(*s.cfl)});
+  if (s.dt) o.push_back({"simulation.dt", text(*s.dt)});
+  if (s.transfer) o.push_back({"simulation.transfer", *s.transfer});
+  if (s.flip_blend) o.push_back({"simulation.flip_blend", text(*s.flip_blend)});
+  if (s.kernel) o.push_back({"simulation.kernel", *s.kernel});
+  if (s.frames) o.push_back({"simulation.frames", std::to_string(*s.frames)});
+  return o;
+}
+
+const char* transfer_name(Transfer t) {
+  return t == Transfer::apic ? "apic" : t == Transfer::pic ? "pic" : "flip";
+}
+const char* kernel_name(Kernel k) {
+  return k == Kernel::linear ? "linear" : k == Kernel::quadratic ? "quadratic" : "cubic";
+}
+
+// The child sends its Outcome back as lines of text.
+std::string serialize(const Outcome& o, double rss) {
+  std::ostringstream s;
+  s.precision(17);
+  s << o.status << '\n' << o.error_name << '\n' << o.error << ' ' << o.particles << ' '
+    << o.substeps << ' ' << o.seconds << ' ' << rss << '\n';
+  for (const Measure& m : o.measures)
+    s << "m " << m.name << ' ' << m.value << ' ' << m.exact << ' ' << (m.unit.empty() ? "-" : m.unit)
+      << '\n';
+  for (const Series& ser : o.series) {
+    s << "s " << ser.t.size() << ' ' << ser.name << '\n';
+    for (std::size_t i = 0; i < ser.t.size(); ++i) s << ser.t[i] << ' ' << ser.value[i] << '\n';
+  }
+  return s.str();
+}
+
+Outcome deserialize(const std::string& text, double& rss) {
+  std::istringstream s(text);
+  Outcome o;
+  std::getline(s, o.status);
+  std::getline(s, o.error_name);
+  s >> o.error >> o.particles >> o.substeps >> o.seconds >> rss;
+  for (std::string tag; s >> tag;) {
+    if (tag == "m") {
+      Measure m;
+      s >> m.name >> m.value >> m.exact >> m.unit;
+      if (m.unit == "-") m.unit.clear();
+      o.measures.push_back(m);
+    } else {
+      std::size_t n = 0;
+      Series ser;
+      s >> n;
+      s.get();
+      std::getline(s, ser.name);
+      ser.t.resize(n);
+      ser.value.resize(n);
+      for (std::size_t i = 0; i < n; ++i) s >> ser.t[i] >> ser.value[i];
+      o.series.push_back(ser);
+    }
+  }
+  return o;
+}
+
+}  // namespace
+
+std::vector<std::string> experiment_names() {
+  std::vector<std::string> names;
+  for (const Experiment& e : experiments()) names.push_back(e.name);
+  return names;
+}
+
+std::vector<StudyRow> run_study(const StudyOptions& opt,
+                                const std::function<void(const StudyRow&)>& progress) {
+  for (const std::string& name : opt.experiments) {
+    bool known = false;
+    for (const Experiment& e : experiments()) known = known || e.name == name;
+    if (!known) {
+      std::string list;
+      for (const std::string& n : experiment_names()) list += (list.empty() ? "" : ", ") + n;
+      throw std::invalid_argument("unknown study sweep '" + name + "'; expected one of " + list);
+    }
+  }
+  if (opt.threads > 0) omp_set_num_threads(opt.threads);
+  std::vector<StudyRow> rows;
+  for (const Experiment& e : experiments()) {
+    if (!opt.experiments.empty() &&
+        std::find(opt.experiments.begin(), opt.experiments.end(), e.name) == opt.experiments.end())
+      continue;
+    const Case& c = *find_case(e.case_name);
+    MaterialRegistry registry = builtin_registry();
+    const SceneDesc base = load_scene(scene_path(c), registry, LoadOptions{{}, false});
+    for (const Setting& s : opt.quick ? e.quick : e.full) {
+      const std::vector<SceneOverride> o = overrides_for(s, base);
+      const SceneDesc scene = load_scene(scene_path(c), registry, LoadOptions{o, false});
+      StudyRow row;
+      row.experiment = e.name;
+      row.case_name = c.name;
+      row.setting = s;
+      row.h = scene.grid.spacing().minCoeff();
+      row.ppc = scene.objects.at(0).particles_per_cell;
+      row.sampling = scene.objects.at(0).sampling == Sampling::regular ? "regular" : "jittered";
+      row.transfer = transfer_name(scene.simulation.transfer);
+      if (scene.simulation.transfer == Transfer::flip) {
+        std::ostringstream blend;
+        blend << scene.simulation.flip_blend;  // 6 significant digits: "0.95"
+        row.transfer += blend.str();
+      }
+      row.kernel = kernel_name(scene.simulation.kernel);
+      row.cfl = scene.simulation.cfl.value_or(0);
+      row.dt = scene.simulation.dt.value_or(0);
+      const std::string out = run_in_child(
+          [&] {
+            const Outcome outcome = run_case(c, o);
+            return serialize(outcome, peak_rss_bytes());  // after the run: its peak
+          },
+          "study run " + e.name + " (" + setting_label(row) + ")");
+      row.outcome = deserialize(out, row.peak_rss_bytes);
+      if (progress) progress(row);
+      rows.push_back(std::move(row));
+    }
+  }
+  return rows;
+}
+
+std::string setting_label(const StudyRow& r) {
+  std::ostringstream s;
+  s << r.kernel << " h=" << r.h << " ppc=" << r.ppc << (r.sampling == "regular" ? "r" : "j");
+  if (r.cfl > 0) s << " cfl=" << r.cfl;
+  else s << " dt=" << r.dt;
+  s << ' ' << r.transfer;
+  return s.str();
+}
+
+std::string study_csv(const std::vector<StudyRow>& rows) {
+  std::ostringstream s;
+  s.precision(9);
+  s << "experiment,case,kernel,h,ppc,sampling,cfl,dt,transfer,precision,status,error_name,error,"
+       "particles,substeps,particle_steps,wall_seconds,particle_steps_per_second,peak_rss_mb,"
+       "measures\n";
+  for (const StudyRow& r : rows) {
+    const Outcome& o = r.outcome;
+    const double steps = static_cast<double>(o.particles) * o.substeps;
+    s << r.experiment << ',' << r.case_name << ',' << r.kernel << ',' << r.h << ',' << r.ppc << ','
+      << r.sampling << ',' << r.cfl << ',' << r.dt << ',' << r.transfer << ',' << kStoredPrecision << ',' << o.status << ",\"" << o.error_name
+      << "\"," << o.error << ',' << o.particles << ',' << o.substeps << ',' << steps << ','
+      << o.seconds << ',' << (o.seconds > 0 ? steps / o.seconds : 0) << ','
+      << r.peak_rss_bytes / 1e6 << ",\"";
+    for (std::size_t i = 0; i < o.measures.size(); ++i)
+      s << (i ? "; " : "") << o.measures[i].name << '=' << o.measures[i].value
+        << (o.measures[i].exact != 0 ? " (exact " : "")
+        << (o.measures[i].exact != 0 ? text(o.measures[i].exact) + ")" : "");
+    s << "\"\n";
+  }
+  return s.str();
+}
+
+std::string series_csv(const std::vector<StudyRow>& rows) {
+  std::ostringstream s;
+  s.precision(12);
+  s << "experiment,case,label,series,t,value\n";
+  for (const StudyRow& r : rows)
+    for (const Series& ser : r.outcome.series)
+      for (std::size_t i = 0; i < ser.t.size(); ++i)
+        s << r.experiment << ',' << r.case_name << ",\"" << setting_label(r) << "\",\"" << ser.name
+          << "\"," << ser.t[i] << ',' << ser.value[i] << '\n';
+  return s.str();
+}
+
+int study_main(const StudyOptions& opt, const std::filesystem::path& dir) {
+  std::vector<StudyRow> rows;
+  try {
+    rows = run_study(opt, [](const StudyRow& r) {
+      std::printf("%-14s %-20s %-44s %-8s error %.3e  %6.1f s  %.0f MB\n", r.experiment.c_str(),
+                  r.case_name.c_str(), setting_label(r).c_str(), r.outcome.status.c_str(),
+                  r.outcome.error, r.outcome.seconds, r.peak_rss_bytes / 1e6);
+      std::fflush(stdout);
+    });
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "mpm study: %s\n", e.what());
+    return kExitBadInput;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "mpm study: %s\n", e.what());
+    return kExitRunFailed;
+  }
+  try {
+    std::filesystem::create_directories(dir);
+    write_file_whole(dir / "study.csv", study_csv(rows));
+    write_file_whole(dir / "series.csv", series_csv(rows));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "mpm study: %s\n", e.what());
+    return kExitRunFailed;
+  }
+  std::printf("wrote %s and %s\n", (dir / "study.csv").c_str(), (dir / "series.csv").c_str());
+  return kExitOk;
+}
+
+double convergence_order(const std::vector<double>& h, const std::vector<double>& error) {
+  const std::size_t n = h.size();
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = std::log(h[i]), y = std::log(error[i]);
+    sx += x, sy += y, sxx += x * x, sxy += x * y;
+  }
+  return (n * sxy - sx * sy) / (n * sxx - sx * sx);
+}
+
+}  // namespace mpm::validation
