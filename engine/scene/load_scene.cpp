@@ -45,7 +45,8 @@ SimulationDesc read_simulation(ParamReader r) {
   if (!s.dt && !s.cfl) r.fail("", "give 'dt' (fixed substep), 'cfl' (adaptive substep), or both");
   s.gravity = r.get_or("gravity", s.gravity);
   s.transfer = read_choice<Transfer>(
-      r, "transfer", {{"apic", Transfer::apic}, {"pic", Transfer::pic}, {"flip", Transfer::flip}});
+      r, "transfer", {{"apic", Transfer::apic}, {"pic", Transfer::pic}, {"flip", Transfer::flip},
+                      {"mls", Transfer::mls}});
   s.flip_blend = r.get_or("flip_blend", s.flip_blend);
   r.check_range("flip_blend", s.flip_blend, 0, 1);
   s.kernel = read_choice<Kernel>(r, "kernel", {{"quadratic", Kernel::quadratic},
@@ -54,6 +55,10 @@ SimulationDesc read_simulation(ParamReader r) {
   s.damping = r.get_or("damping", s.damping);
   r.check_range("damping", s.damping, 0, 1e300);
   s.seed = r.get_or<std::uint64_t>("seed", s.seed);
+  s.simd = r.get_or("simd", s.simd);
+  if (s.transfer == Transfer::mls && s.kernel == Kernel::linear)
+    r.fail("transfer", "transfer 'mls' needs kernel quadratic or cubic (its D is not constant "
+                       "for the linear kernel)");
   r.finish();
   return s;
 }
@@ -70,6 +75,7 @@ GridDesc read_grid(ParamReader r) {
   for (int a = 0; a < 3; ++a)
     if (!std::isnormal(g.spacing()[a]))
       r.fail("max", "the cell size (max - origin) / dims overflows or underflows");
+  g.float_nodes = read_choice<bool>(r, "precision", {{"double", false}, {"float", true}});
   g.buffer = r.get_or("buffer", g.buffer);
   r.check_range("buffer", g.buffer, 2, 1e5);
   if (2 * g.buffer + 1 > g.dims.minCoeff())

@@ -14,8 +14,9 @@
 
 namespace mpm {
 
-/// How particle velocities are carried to and from the grid.
-enum class Transfer { apic, pic, flip };
+/// How particle velocities are carried to and from the grid (mls: APIC's transfer with the
+/// stress folded into the affine momentum, Hu et al. 2018).
+enum class Transfer { apic, pic, flip, mls };
 
 /// What a wall does to grid velocities that point into it.
 enum class Boundary {
@@ -36,6 +37,7 @@ struct SimulationDesc {
   Kernel kernel = Kernel::quadratic;  ///< Interpolation kernel.
   double damping = 0;                 ///< Grid velocity damping rate, 1/s (0: none).
   std::uint64_t seed = 1;             ///< Seed for particle sampling.
+  bool simd = true;                   ///< Float SIMD transfers; false: the scalar reference path.
 };
 
 /// Where particles go inside each grid cell.
@@ -50,6 +52,7 @@ struct GridDesc {
   Vec3 max{1, 1, 1};     ///< Maximum corner, m.
   Vec3i dims{100, 100, 100};  ///< Cells per axis.
   int buffer = 3;        ///< Cells lining the boundary that particles never enter.
+  bool float_nodes = false;  ///< Node mass, momentum and velocity stored in float (precision).
   FileLoc loc;           ///< Where `dims` is written (for errors about the grid's size).
 
   /// Cell size per axis, m.

@@ -7,7 +7,8 @@ namespace mpm {
 Grid::Grid(const GridDesc& d, bool flip)
     : origin(d.origin), h(d.spacing()), inv_h(h.cwiseInverse()),
       nodes(d.dims + Vec3i::Ones()), buffer(d.buffer),
-      blocks((nodes + Vec3i::Constant(kBlockEdge - 1)) / kBlockEdge), flip(flip) {
+      blocks((nodes + Vec3i::Constant(kBlockEdge - 1)) / kBlockEdge), flip(flip),
+      float_nodes(d.float_nodes) {
   slot.assign(static_cast<std::size_t>(blocks.x()) * blocks.y() * blocks.z(), -1);
 }
 
@@ -44,6 +45,7 @@ void grid_update(Grid& g) {
   for_each_active_node(g, [&](int, int, int, std::size_t idx) {
     const Real m = g.mass[idx];
     g.velocity[idx] = m > 0 ? Vec3(g.velocity[idx] / m) : Vec3::Zero();
+    if (g.float_nodes) g.velocity[idx] = g.velocity[idx].cast<float>().cast<Real>();
     if (g.flip) g.velocity_old[idx] = g.velocity[idx];
   });
 }

@@ -29,6 +29,9 @@ struct Grid {
   int buffer = 3;     ///< Boundary cells particles never enter.
   Vec3i blocks;       ///< Blocks per axis covering the nodes.
   bool flip = false;  ///< True if force and velocity_old are kept (FLIP only).
+  /// Node mass, momentum and velocity rounded to float where the transfers and grid_update
+  /// store them (grid.precision: float); the arrays stay double-wide, arithmetic is double.
+  bool float_nodes = false;
 
   std::vector<std::int32_t> slot;  ///< Page table: block -> storage slot, -1 if not in use.
   std::vector<Vec3i> block_first;  ///< First node (i, j, k) of the block in each slot.
@@ -37,6 +40,8 @@ struct Grid {
   std::vector<Vec3> velocity;      ///< Momentum after transfer, then velocity, m/s.
   std::vector<Vec3> force;         ///< Internal force from stress, N (FLIP only; else empty).
   std::vector<Vec3> velocity_old;  ///< Velocity before forces (FLIP only; else empty).
+  /// Scratch of the SIMD gather: the velocity in float, all x, then all y, then all z.
+  mutable std::vector<float> velocity_f;
 
   /// A grid for `desc`; `flip` keeps velocity_old and force, which only FLIP uses.
   Grid(const GridDesc& desc, bool flip);

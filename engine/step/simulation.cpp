@@ -114,7 +114,8 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     L += (Mat3() << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0).finished();
     P.x.insert(P.x.end(), points.begin(), points.end());
     for (const Vec3& x : points) P.v.push_back(od.velocity + L * (x - centroid));
-    if (scene.simulation.transfer == Transfer::apic) P.C.insert(P.C.end(), n, to_stored(L));
+    if (scene.simulation.transfer == Transfer::apic || scene.simulation.transfer == Transfer::mls)
+      P.C.insert(P.C.end(), n, to_stored(L));
     P.F.insert(P.F.end(), n, StoredMat3::Identity());
     P.object.insert(P.object.end(), n, static_cast<std::uint32_t>(o));
     P.object_mass.push_back(total_mass / n);
@@ -147,7 +148,8 @@ void Simulation::build_stages() {
   add("particles_to_grid",
       [this](Real dt) {
         const SimulationDesc& sd = scene_.simulation;
-        particles_to_grid(particles_, order_, sd.transfer, sd.kernel, dt, grid_);
+        particles_to_grid(particles_, order_, sd.transfer, sd.kernel, dt, grid_,
+                          sd.simd ? TransferPath::simd : TransferPath::scalar);
       });
   add("grid_update", [this](Real) { grid_update(grid_); });
   // PIC and APIC scatter the stress force as an impulse (see particles_to_grid).
@@ -163,7 +165,8 @@ void Simulation::build_stages() {
   add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
   add("grid_to_particles", [this](Real dt) {
     const SimulationDesc& sd = scene_.simulation;
-    grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_);
+    grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_,
+                      sd.simd ? TransferPath::simd : TransferPath::scalar);
   });
   const bool plastic = std::any_of(materials_.begin(), materials_.end(),
                                    [](const auto& m) { return m.material->has_plasticity(); });

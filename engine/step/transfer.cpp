@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "engine/step/kernels.h"
+#include "engine/step/simd/transfer_simd.h"
 
 namespace mpm {
 
@@ -111,22 +112,26 @@ struct CellSums {
 
 /// Adds particle q, whose stencil is `s`, to its cell's sums. With kImpulse the stress force
 /// enters the momentum as the impulse dt f; otherwise (FLIP, which needs the velocity before
-/// forces) it is summed apart.
-template <Kernel K, bool kApic, bool kImpulse>
+/// forces) it is summed apart. With kMls the stress is folded into the affine term instead
+/// (Hu et al. 2018, eq. 29: Q = m C + dt (-V0 tau) D^-1) and no force is scattered.
+template <Kernel K, bool kApic, bool kImpulse, bool kMls = false>
 void scatter_particle(const Particles& p, std::uint32_t q, Real dt, const Grid& g,
                       const Stencil<KernelTraits<K>::kNodes>& s,
                       CellSums<KernelTraits<K>::kNodes, !kImpulse>& sums) {
   constexpr int N = KernelTraits<K>::kNodes;
   const Real m = p.mass(q);
-  // Momentum at node (i, j, k): m v + m C (corner + (i, j, k) h) = a + i c0 + j c1 + k c2.
+  // Momentum at node (i, j, k): m v + Q (corner + (i, j, k) h) = a + i c0 + j c1 + k c2.
   Vec3 a = m * p.v[q];
   Mat3 c = Mat3::Zero();
   if constexpr (kApic) {
-    const Mat3 mC = m * to_real(p.C[q]);
+    Mat3 mC = m * to_real(p.C[q]);
+    if constexpr (kMls)
+      mC += (dt * KernelTraits<K>::kInvDScale) * to_real(p.stress[q]) *
+            g.inv_h.cwiseProduct(g.inv_h).asDiagonal();
     a += mC * (g.position(s.base.x(), s.base.y(), s.base.z()) - p.x[q]);
     c = mC * g.h.asDiagonal();
   }
-  const Mat3 S = (kImpulse ? dt : Real(1)) * to_real(p.stress[q]);
+  const Mat3 S = kMls ? Mat3::Zero() : Mat3((kImpulse ? dt : Real(1)) * to_real(p.stress[q]));
   // Weights are products w0[i] w1[j] w2[k]. Per (i, j) row, with w01 = w0[i] w1[j]:
   //   momentum  w2[k] w01 a_ij + k w2[k] w01 c2,    a_ij = a + i c0 + j c1,
   //   force     w2[k] (dw0[i] w1[j] S0 + w0[i] dw1[j] S1) + dw2[k] w01 S2   (S grad w).
@@ -144,7 +149,7 @@ void scatter_particle(const Particles& p, std::uint32_t q, Real dt, const Grid& 
         sums.mass[n] += m01 * w2;
         Vec3 dp = w2 * mom;
         if constexpr (kApic) dp += (k * w2) * mom_k;
-        const Vec3 f = w2 * f_w + dw2 * f_dw;
+        const Vec3 f = kMls ? Vec3::Zero() : Vec3(w2 * f_w + dw2 * f_dw);
         if constexpr (kImpulse) {
           sums.momentum[n] += dp + f;
         } else {
@@ -157,7 +162,7 @@ void scatter_particle(const Particles& p, std::uint32_t q, Real dt, const Grid& 
 
 /// Scatters the sorted particles order[begin, end): each run of particles sharing a stencil
 /// base cell is summed locally, then added to the grid's nodes once.
-template <Kernel K, bool kApic, bool kImpulse>
+template <Kernel K, bool kApic, bool kImpulse, bool kMls>
 void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t begin,
                    std::size_t end, Real dt, Grid& g) {
   constexpr int N = KernelTraits<K>::kNodes;
@@ -170,7 +175,7 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
       const std::uint32_t i = ord.order[q];
       const auto s = make_stencil<K>(p.x[i], g.origin, g.inv_h);
       base = s.base;
-      scatter_particle<K, kApic, kImpulse>(p, i, dt, g, s, sums);
+      scatter_particle<K, kApic, kImpulse, kMls>(p, i, dt, g, s, sums);
     }
     std::size_t nodes[Sums::kNodes];
     g.stencil_indices<N>(base, nodes);
@@ -178,24 +183,30 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
       g.mass[nodes[n]] += sums.mass[n];
       g.velocity[nodes[n]] += sums.momentum[n];
       if constexpr (!kImpulse) g.force[nodes[n]] += sums.force[n];
+      if (g.float_nodes) {  // grid.precision: float rounds every stored sum
+        g.mass[nodes[n]] = static_cast<float>(g.mass[nodes[n]]);
+        g.velocity[nodes[n]] = g.velocity[nodes[n]].template cast<float>().template cast<Real>();
+        if constexpr (!kImpulse) g.force[nodes[n]] = g.force[nodes[n]].template cast<float>().template cast<Real>();
+      }
     }
   }
 }
 
-template <Kernel K, bool kApic, bool kImpulse>
+template <Kernel K, bool kApic, bool kImpulse, bool kMls = false>
 void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt, Grid& g) {
   const int slabs = static_cast<int>(ord.slab_start.size()) - 1;
   for (int color = 0; color < 2; ++color) {
 #pragma omp parallel for schedule(dynamic, 1) if (ord.order.size() >= kParallelMinItems)
     for (int s = color; s < slabs; s += 2)
-      scatter_range<K, kApic, kImpulse>(p, ord, ord.slab_start[s], ord.slab_start[s + 1], dt, g);
+      scatter_range<K, kApic, kImpulse, kMls>(p, ord, ord.slab_start[s], ord.slab_start[s + 1],
+                                              dt, g);
   }
 }
 
 }  // namespace
 
 void particles_to_grid(const Particles& p, const ParticleOrder& ord, Transfer transfer,
-                       Kernel kernel, Real dt, Grid& g) {
+                       Kernel kernel, Real dt, Grid& g, TransferPath path) {
   // The node arrays hold exactly the active blocks; clear all of them, padding included (a
   // slot may have held another block before).
   const std::ptrdiff_t nodes = static_cast<std::ptrdiff_t>(g.mass.size());
@@ -205,11 +216,16 @@ void particles_to_grid(const Particles& p, const ParticleOrder& ord, Transfer tr
     g.velocity[i].setZero();
     if (g.flip) g.force[i].setZero();
   }
+  if (path == TransferPath::simd && simd::supports(transfer, kernel, g))
+    return simd::scatter(p, ord, transfer, kernel, dt, g);
   dispatch_kernel(kernel, [&]<Kernel K>() {
     switch (transfer) {
       case Transfer::apic: scatter_all<K, true, true>(p, ord, dt, g); break;
       case Transfer::pic: scatter_all<K, false, true>(p, ord, dt, g); break;
       case Transfer::flip: scatter_all<K, false, false>(p, ord, dt, g); break;
+      case Transfer::mls:
+        if constexpr (K != Kernel::linear) scatter_all<K, true, true, true>(p, ord, dt, g);
+        break;  // the loader refuses mls with the linear kernel
     }
   });
 }
@@ -221,7 +237,9 @@ void gather_all(const Grid& g, Real flip_blend, Real dt, Particles& p) {
   constexpr int N = KernelTraits<K>::kNodes;
   constexpr int kStencil = N * N * N;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
+  constexpr bool kAffine = kTransfer == Transfer::apic || kTransfer == Transfer::mls;
   const Vec3 inv_D = KernelTraits<K>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
+  const bool fl = g.float_nodes;
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
   for (std::ptrdiff_t q = 0; q < n; ++q) {
     const auto s = make_stencil<K>(p.x[q], g.origin, g.inv_h);
@@ -236,10 +254,11 @@ void gather_all(const Grid& g, Real flip_blend, Real dt, Particles& p) {
       for (int j = 0; j < N; ++j) {
         Vec3 r0 = Vec3::Zero(), r1 = Vec3::Zero(), r2 = Vec3::Zero(), rd = Vec3::Zero();
         for (int k = 0; k < N; ++k, ++c) {
-          const Vec3& vi = g.velocity[nodes[c]];
+          const Vec3 vi = fl ? Vec3(g.velocity[nodes[c]].template cast<float>().template cast<Real>())
+                             : g.velocity[nodes[c]];
           r0 += s.w[2][k] * vi;
           r1 += s.dw[2][k] * vi;
-          if constexpr (kTransfer == Transfer::apic) r2 += (k * s.w[2][k]) * vi;
+          if constexpr (kAffine) r2 += (k * s.w[2][k]) * vi;
           if constexpr (kTransfer == Transfer::flip)
             rd += s.w[2][k] * (vi - g.velocity_old[nodes[c]]);
         }
@@ -248,7 +267,7 @@ void gather_all(const Grid& g, Real flip_blend, Real dt, Particles& p) {
         sums.col(1) += (s.dw[0][i] * s.w[1][j]) * r0;
         sums.col(2) += (s.w[0][i] * s.dw[1][j]) * r0;
         sums.col(3) += w01 * r1;
-        if constexpr (kTransfer == Transfer::apic) {
+        if constexpr (kAffine) {
           sums.col(4) += (i * w01) * r0;
           sums.col(5) += (j * w01) * r0;
           sums.col(6) += w01 * r2;
@@ -260,14 +279,16 @@ void gather_all(const Grid& g, Real flip_blend, Real dt, Particles& p) {
       p.v[q] = flip_blend * (p.v[q] + dv) + (1 - flip_blend) * v;
     else
       p.v[q] = v;
-    const Mat3 grad_v = sums.template middleCols<3>(1);
-    if constexpr (kTransfer == Transfer::apic) {
+    Mat3 grad_v = sums.template middleCols<3>(1);
+    if constexpr (kAffine) {
       if constexpr (K == Kernel::linear) p.C[q] = to_stored(grad_v);
       else {
         // B = sum w v (x_i - x_p)^T = v (corner)^T + sum w v (i, j, k)^T diag(h).
         const Vec3 corner = g.position(s.base.x(), s.base.y(), s.base.z()) - p.x[q];
         const Mat3 B = v * corner.transpose() + sums.template rightCols<3>() * g.h.asDiagonal();
-        p.C[q] = to_stored(B * inv_D.asDiagonal());
+        const Mat3 C = B * inv_D.asDiagonal();
+        p.C[q] = to_stored(C);
+        if constexpr (kTransfer == Transfer::mls) grad_v = C;  // Hu et al. 2018, eq. 17
       }
     }
     // F <- (I + dt grad v) F (Stomakhin et al. 2013, eq. 7 with the elastic part only).
@@ -278,9 +299,14 @@ void gather_all(const Grid& g, Real flip_blend, Real dt, Particles& p) {
 }  // namespace
 
 void grid_to_particles(const Grid& g, Transfer transfer, Kernel kernel, Real flip_blend,
-                       Real dt, Particles& p) {
+                       Real dt, Particles& p, TransferPath path) {
+  if (path == TransferPath::simd && simd::supports(transfer, kernel, g))
+    return simd::gather(g, transfer, kernel, dt, p);
   dispatch_kernel(kernel, [&]<Kernel K>() {
     switch (transfer) {
+      case Transfer::mls:
+        if constexpr (K != Kernel::linear) gather_all<K, Transfer::mls>(g, flip_blend, dt, p);
+        break;  // the loader refuses mls with the linear kernel
       case Transfer::apic: gather_all<K, Transfer::apic>(g, flip_blend, dt, p); break;
       case Transfer::pic: gather_all<K, Transfer::pic>(g, flip_blend, dt, p); break;
       case Transfer::flip: gather_all<K, Transfer::flip>(g, flip_blend, dt, p); break;

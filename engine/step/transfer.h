@@ -28,23 +28,30 @@ struct ParticleOrder {
 /// for cubic).
 void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& order);
 
+/// Which implementation runs the transfers: the double scalar reference, or float SIMD
+/// lanes (engine/step/simd/transfer_simd.h; FLIP always runs the scalar path).
+enum class TransferPath { scalar, simd };
+
 /// Clears the active nodes, then scatters mass, momentum (with the APIC affine term
 /// m C (x_i - x_p), Jiang et al. 2015 eq. 11) and the stress force
 /// f_i = -sum_p V0 tau_p grad w_ip (Jiang et al. 2016 course notes, eq. 189) to the grid.
 /// For PIC and APIC the force enters the momentum as the impulse dt f_i, so grid_update's
 /// v_i = (m v)_i / m_i is already v_i + dt f_i / m_i. FLIP keeps f_i in grid.force, to be
 /// applied after the velocity before forces is saved. The particles of one stencil base cell
-/// are summed locally and written to their nodes once.
+/// are summed locally and written to their nodes once. MLS (Hu et al. 2018, eq. 29) scatters
+/// no force: the stress enters the affine term, m C + dt (-V0 tau) D^-1.
 void particles_to_grid(const Particles& p, const ParticleOrder& order, Transfer transfer,
-                       Kernel kernel, Real dt, Grid& grid);
+                       Kernel kernel, Real dt, Grid& grid,
+                       TransferPath path = TransferPath::scalar);
 
 /// Gathers velocity (PIC, FLIP blend, or APIC with C = B D^-1, D = h^2 / 4 quadratic, h^2 / 3
 /// cubic, Jiang et al. 2015 eq. 8-10) into the particles, and updates F <- (I + dt grad v) F
 /// with grad v = sum_i v_i grad w_ip^T (Stomakhin et al. 2013, eq. 7, elastic part), fused so
 /// the gradient is never stored. For the linear kernel APIC takes C = grad v (Jiang et al.
-/// 2015, section 5.3).
+/// 2015, section 5.3). MLS takes C as APIC does and updates F <- (I + dt C) F (Hu et al.
+/// 2018, eq. 17), so it needs no weight gradients.
 void grid_to_particles(const Grid& grid, Transfer transfer, Kernel kernel, Real flip_blend,
-                       Real dt, Particles& p);
+                       Real dt, Particles& p, TransferPath path = TransferPath::scalar);
 
 /// What advection saw.
 struct AdvectStats {

@@ -1,0 +1,385 @@
+#include "engine/step/simd/transfer_simd.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <stdexcept>
+
+// Highway compiles this file once per instruction set (foreach_target) and picks one at run
+// time (HWY_DYNAMIC_DISPATCH), so the default build runs AVX-512 on Zen 4 and SSE4 elsewhere.
+// SSSE3 and AVX3_DL add nothing to this float code over SSE4 and AVX3: not compiled.
+#ifndef HWY_DISABLED_TARGETS
+#define HWY_DISABLED_TARGETS (HWY_SSSE3 | HWY_AVX3_DL)
+#endif
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "engine/step/simd/transfer_simd.cpp"
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/highway.h>
+
+HWY_BEFORE_NAMESPACE();
+namespace mpm::simd {
+namespace HWY_NAMESPACE {
+#if HWY_TARGET == HWY_SCALAR
+// One lane cannot hold a stencil's 1D weights: on a CPU without SSE4 the scalar path runs.
+void ScatterImpl(const Particles&, const ParticleOrder&, Transfer, Kernel, Real, Grid&) {}
+void GatherImpl(const Grid&, Transfer, Kernel, Real, Particles&) {}
+const char* TargetImpl() { return nullptr; }
+#else
+namespace {
+
+namespace hn = hwy::HWY_NAMESPACE;
+using DF = hn::ScalableTag<float>;
+using DI = hn::RebindToSigned<DF>;
+using VF = hn::Vec<DF>;
+constexpr std::size_t kLanes = HWY_LANES(float);  ///< Lanes of a full vector on this target.
+
+/// Rounds a grid value to float storage if the grid stores float (grid.precision: float).
+inline Real store_node(Real v, bool float_nodes) {
+  return float_nodes ? static_cast<Real>(static_cast<float>(v)) : v;
+}
+
+/// 1D weights and their derivatives (per cell) of kernel K at d = fx - base, one lane per
+/// particle: the vector form of KernelTraits<K>::weights.
+template <Kernel K>
+void lane_weights(DF d, VF x, VF* w, VF* dw) {
+  const VF one = hn::Set(d, 1.0f), half = hn::Set(d, 0.5f);
+  if constexpr (K == Kernel::linear) {
+    w[0] = hn::Sub(one, x);
+    w[1] = x;
+    dw[0] = hn::Neg(one);
+    dw[1] = one;
+  } else if constexpr (K == Kernel::quadratic) {
+    const VF a = hn::Sub(hn::Set(d, 1.5f), x), b = hn::Sub(x, one), c = hn::Sub(x, half);
+    w[0] = hn::Mul(half, hn::Mul(a, a));
+    w[1] = hn::NegMulAdd(b, b, hn::Set(d, 0.75f));
+    w[2] = hn::Mul(half, hn::Mul(c, c));
+    dw[0] = hn::Neg(a);
+    dw[1] = hn::Mul(hn::Set(d, -2.0f), b);
+    dw[2] = c;
+  } else {
+    const VF a = hn::Sub(hn::Set(d, 2.0f), x), b = hn::Sub(x, one);  // c = a, e = b
+    const VF sixth = hn::Set(d, 1.0f / 6), two3 = hn::Set(d, 2.0f / 3);
+    const VF a2 = hn::Mul(a, a), b2 = hn::Mul(b, b);
+    w[0] = hn::Mul(hn::Mul(a2, a), sixth);
+    w[1] = hn::Add(hn::Sub(hn::Mul(half, hn::Mul(b2, b)), b2), two3);
+    w[2] = hn::Add(hn::Sub(hn::Mul(half, hn::Mul(a2, a)), a2), two3);
+    w[3] = hn::Mul(hn::Mul(b2, b), sixth);
+    const VF onehalf = hn::Set(d, 1.5f), two = hn::Set(d, 2.0f);
+    dw[0] = hn::Neg(hn::Mul(half, a2));
+    dw[1] = hn::Sub(hn::Mul(onehalf, b2), hn::Mul(two, b));
+    dw[2] = hn::Neg(hn::Sub(hn::Mul(onehalf, a2), hn::Mul(two, a)));
+    dw[3] = hn::Mul(half, b2);
+  }
+}
+
+/// Scatters order[begin, end) (the grid cleared): one lane per stencil node. For each
+/// particle the node values are affine in the node's (i, j, k) and products of the 1D
+/// weights, which are looked up per lane from three small tables.
+template <Kernel K, Transfer T>
+void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t begin,
+                   std::size_t end, Real dt, Grid& g) {
+  using Traits = KernelTraits<K>;
+  constexpr int N = Traits::kNodes, kNodes = N * N * N;
+  constexpr int NV = static_cast<int>((kNodes + kLanes - 1) / kLanes);  // vectors per stencil
+  constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
+  constexpr bool kStress = T != Transfer::mls;  // MLS folds the stress into the affine term
+  const DF d;
+  // Per lane: the node's (i, j, k), as floats and as table indices (padding lanes: node 0,
+  // summed but never written).
+  alignas(64) float fi[NV * kLanes], fj[NV * kLanes], fk[NV * kLanes];
+  alignas(64) std::int32_t ti[NV * kLanes], tj[NV * kLanes], tk[NV * kLanes];
+  for (int n = 0; n < NV * static_cast<int>(kLanes); ++n) {
+    const int m = n < kNodes ? n : 0;
+    ti[n] = m / (N * N), tj[n] = (m / N) % N, tk[n] = m % N;
+    fi[n] = static_cast<float>(ti[n]), fj[n] = static_cast<float>(tj[n]);
+    fk[n] = static_cast<float>(tk[n]);
+  }
+  const Vec3 inv_D = Traits::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
+  alignas(64) float wt[3][kLanes] = {}, dwt[3][kLanes] = {};
+  alignas(64) float out[4][NV * kLanes];
+  for (std::size_t q = begin; q < end;) {
+    const std::uint32_t cell = ord.keys[ord.order[q]];
+    VF acc[4][NV];  // mass, momentum x, y, z per node
+    for (auto& a : acc)
+      for (VF& v : a) v = hn::Zero(d);
+    Vec3i base;
+    for (; q < end && ord.keys[ord.order[q]] == cell; ++q) {
+      const std::uint32_t pi = ord.order[q];
+      const auto s = make_stencil<K>(p.x[pi], g.origin, g.inv_h);
+      base = s.base;
+      for (int a = 0; a < 3; ++a)
+        for (int k = 0; k < N; ++k) {
+          wt[a][k] = static_cast<float>(s.w[a][k]);
+          dwt[a][k] = static_cast<float>(s.dw[a][k]);
+        }
+      // Momentum at node (i, j, k): m v + Q (corner + (i, j, k) h - x) = a + i c0 + j c1 + k c2,
+      // Q = m C (APIC) or m C + dt (-V0 tau) D^-1 (MLS, Hu et al. 2018, eq. 29).
+      const Real m = p.mass(pi);
+      Vec3 av = m * p.v[pi];
+      Mat3 c = Mat3::Zero();
+      if constexpr (kAffine) {
+        Mat3 Q = m * to_real(p.C[pi]);
+        if constexpr (T == Transfer::mls) Q += dt * to_real(p.stress[pi]) * inv_D.asDiagonal();
+        av += Q * (g.position(base.x(), base.y(), base.z()) - p.x[pi]);
+        c = Q * g.h.asDiagonal();
+      }
+      const Mat3 S = dt * to_real(p.stress[pi]);  // impulse dt f = dt (-V0 tau) grad w
+      const VF W0 = hn::Load(d, wt[0]), W1 = hn::Load(d, wt[1]), W2 = hn::Load(d, wt[2]);
+      const VF D0 = hn::Load(d, dwt[0]), D1 = hn::Load(d, dwt[1]), D2 = hn::Load(d, dwt[2]);
+      const VF mv = hn::Set(d, static_cast<float>(m));
+      for (int v = 0; v < NV; ++v) {
+        const auto Ii = hn::SetTableIndices(d, ti + v * kLanes);
+        const auto Ij = hn::SetTableIndices(d, tj + v * kLanes);
+        const auto Ik = hn::SetTableIndices(d, tk + v * kLanes);
+        const VF wx = hn::TableLookupLanes(W0, Ii), wy = hn::TableLookupLanes(W1, Ij),
+                 wz = hn::TableLookupLanes(W2, Ik);
+        const VF wyz = hn::Mul(wy, wz), w = hn::Mul(wx, wyz);
+        acc[0][v] = hn::MulAdd(mv, w, acc[0][v]);
+        VF gx, gy, gz;
+        if constexpr (kStress) {
+          gx = hn::Mul(hn::TableLookupLanes(D0, Ii), wyz);
+          gy = hn::Mul(wx, hn::Mul(hn::TableLookupLanes(D1, Ij), wz));
+          gz = hn::Mul(hn::Mul(wx, wy), hn::TableLookupLanes(D2, Ik));
+        }
+        const VF I = hn::Load(d, fi + v * kLanes), J = hn::Load(d, fj + v * kLanes),
+                 Kk = hn::Load(d, fk + v * kLanes);
+        for (int e = 0; e < 3; ++e) {
+          VF t = hn::Set(d, static_cast<float>(av[e]));
+          if constexpr (kAffine) {
+            t = hn::MulAdd(I, hn::Set(d, static_cast<float>(c(e, 0))), t);
+            t = hn::MulAdd(J, hn::Set(d, static_cast<float>(c(e, 1))), t);
+            t = hn::MulAdd(Kk, hn::Set(d, static_cast<float>(c(e, 2))), t);
+          }
+          VF sum = hn::MulAdd(w, t, acc[1 + e][v]);
+          if constexpr (kStress) {
+            sum = hn::MulAdd(gx, hn::Set(d, static_cast<float>(S(e, 0))), sum);
+            sum = hn::MulAdd(gy, hn::Set(d, static_cast<float>(S(e, 1))), sum);
+            sum = hn::MulAdd(gz, hn::Set(d, static_cast<float>(S(e, 2))), sum);
+          }
+          acc[1 + e][v] = sum;
+        }
+      }
+    }
+    for (int a = 0; a < 4; ++a)
+      for (int v = 0; v < NV; ++v) hn::Store(acc[a][v], d, out[a] + v * kLanes);
+    std::size_t nodes[kNodes];
+    g.stencil_indices<N>(base, nodes);
+    const bool fl = g.float_nodes;
+    for (int n = 0; n < kNodes; ++n) {
+      const std::size_t x = nodes[n];
+      g.mass[x] = store_node(g.mass[x] + out[0][n], fl);
+      for (int e = 0; e < 3; ++e)
+        g.velocity[x][e] = store_node(g.velocity[x][e] + out[1 + e][n], fl);
+    }
+  }
+}
+
+template <Kernel K, Transfer T>
+void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt, Grid& g) {
+  const int slabs = static_cast<int>(ord.slab_start.size()) - 1;
+  for (int color = 0; color < 2; ++color) {
+#pragma omp parallel for schedule(dynamic, 1) if (ord.order.size() >= kParallelMinItems)
+    for (int s = color; s < slabs; s += 2)
+      scatter_range<K, T>(p, ord, ord.slab_start[s], ord.slab_start[s + 1], dt, g);
+  }
+}
+
+/// Gathers particles [q0, q0 + count), count <= kLanes, one lane each (the last lane's
+/// particle repeated in unused lanes, which are not written back).
+template <Kernel K, Transfer T>
+void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Particles& p) {
+  using Traits = KernelTraits<K>;
+  constexpr int N = Traits::kNodes, kNodes = N * N * N;
+  constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
+  constexpr bool kGrad = T != Transfer::mls;  // MLS updates F with C, not with grad w
+  const DF d;
+  const DI di;
+  alignas(64) float dist[3][kLanes], corner[3][kLanes], Fin[9][kLanes];
+  alignas(64) std::int32_t idx[kNodes][kLanes];
+  for (std::size_t l = 0; l < kLanes; ++l) {
+    const std::size_t q = q0 + std::min(l, count - 1);
+    Vec3i base;
+    for (int a = 0; a < 3; ++a) {
+      const Real fx = (p.x[q][a] - g.origin[a]) * g.inv_h[a];
+      base[a] = Traits::base(fx);
+      dist[a][l] = static_cast<float>(fx - base[a]);
+      corner[a][l] = static_cast<float>(g.origin[a] + base[a] * g.h[a] - p.x[q][a]);
+    }
+    std::size_t nodes[kNodes];
+    g.stencil_indices<N>(base, nodes);
+    for (int n = 0; n < kNodes; ++n) idx[n][l] = static_cast<std::int32_t>(nodes[n]);
+    const StoredReal* F = p.F[q].data();
+    for (int e = 0; e < 9; ++e) Fin[e][l] = static_cast<float>(F[e]);
+  }
+  VF w[3][N], dw[3][N];
+  for (int a = 0; a < 3; ++a) {
+    lane_weights<K>(d, hn::Load(d, dist[a]), w[a], dw[a]);
+    const VF s = hn::Set(d, static_cast<float>(g.inv_h[a]));
+    for (int k = 0; k < N; ++k) dw[a][k] = hn::Mul(dw[a][k], s);
+  }
+  const float* vel[3] = {g.velocity_f.data(), g.velocity_f.data() + g.mass.size(),
+                         g.velocity_f.data() + 2 * g.mass.size()};
+  // Each (i, j) row of the stencil summed over k first (r0: w2, r1: dw2, r2: k w2), then the
+  // rows: v, grad v (column a: d/dx_a) and the index moments sum w v (i, j, k) for B.
+  VF sv[3], sg[3][3], sb[3][3];
+  for (int e = 0; e < 3; ++e) {
+    sv[e] = hn::Zero(d);
+    for (int a = 0; a < 3; ++a) sg[e][a] = sb[e][a] = hn::Zero(d);
+  }
+  int n = 0;
+  for (int i = 0; i < N; ++i)
+    for (int j = 0; j < N; ++j) {
+      VF r0[3], r1[3], r2[3];
+      for (int e = 0; e < 3; ++e) r0[e] = r1[e] = r2[e] = hn::Zero(d);
+      for (int k = 0; k < N; ++k, ++n) {
+        const auto vi = hn::Load(di, idx[n]);
+        const VF kw = hn::Mul(hn::Set(d, static_cast<float>(k)), w[2][k]);
+        for (int e = 0; e < 3; ++e) {
+          const VF ve = hn::GatherIndex(d, vel[e], vi);
+          r0[e] = hn::MulAdd(w[2][k], ve, r0[e]);
+          if constexpr (kGrad) r1[e] = hn::MulAdd(dw[2][k], ve, r1[e]);
+          if constexpr (kAffine) r2[e] = hn::MulAdd(kw, ve, r2[e]);
+        }
+      }
+      const VF w01 = hn::Mul(w[0][i], w[1][j]);
+      const VF gx = hn::Mul(dw[0][i], w[1][j]), gy = hn::Mul(w[0][i], dw[1][j]);
+      const VF iw = hn::Mul(hn::Set(d, static_cast<float>(i)), w01);
+      const VF jw = hn::Mul(hn::Set(d, static_cast<float>(j)), w01);
+      for (int e = 0; e < 3; ++e) {
+        sv[e] = hn::MulAdd(w01, r0[e], sv[e]);
+        if constexpr (kGrad) {
+          sg[e][0] = hn::MulAdd(gx, r0[e], sg[e][0]);
+          sg[e][1] = hn::MulAdd(gy, r0[e], sg[e][1]);
+          sg[e][2] = hn::MulAdd(w01, r1[e], sg[e][2]);
+        }
+        if constexpr (kAffine) {
+          sb[e][0] = hn::MulAdd(iw, r0[e], sb[e][0]);
+          sb[e][1] = hn::MulAdd(jw, r0[e], sb[e][1]);
+          sb[e][2] = hn::MulAdd(w01, r2[e], sb[e][2]);
+        }
+      }
+    }
+  // C = B D^-1 with B = v corner^T + sum w v (i, j, k)^T diag(h) (Jiang et al. 2015, eq. 8-10);
+  // the linear kernel takes C = grad v (section 5.3).
+  VF C[3][3];
+  if constexpr (kAffine) {
+    const Vec3 inv_D = Traits::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
+    for (int a = 0; a < 3; ++a) {
+      const VF ca = hn::Load(d, corner[a]);
+      const VF ha = hn::Set(d, static_cast<float>(g.h[a]));
+      const VF da = hn::Set(d, static_cast<float>(inv_D[a]));
+      for (int e = 0; e < 3; ++e)
+        C[e][a] = K == Kernel::linear
+                      ? sg[e][a]
+                      : hn::Mul(hn::MulAdd(sv[e], ca, hn::Mul(sb[e][a], ha)), da);
+    }
+  }
+  // F <- (I + dt G) F with G = grad v (Stomakhin et al. 2013, eq. 7), or G = C for MLS (Hu et
+  // al. 2018, eq. 17).
+  const VF vdt = hn::Set(d, static_cast<float>(dt));
+  alignas(64) float out[9 + 9 + 3][kLanes];
+  for (int col = 0; col < 3; ++col)
+    for (int r = 0; r < 3; ++r) {
+      const VF f = hn::Load(d, Fin[3 * col + r]);
+      VF gf = hn::Zero(d);
+      for (int k = 0; k < 3; ++k) {
+        const VF G = kGrad ? sg[r][k] : C[r][k];
+        gf = hn::MulAdd(G, hn::Load(d, Fin[3 * col + k]), gf);
+      }
+      hn::Store(hn::MulAdd(vdt, gf, f), d, out[3 * col + r]);
+    }
+  if constexpr (kAffine)
+    for (int col = 0; col < 3; ++col)
+      for (int r = 0; r < 3; ++r) hn::Store(C[r][col], d, out[9 + 3 * col + r]);
+  for (int e = 0; e < 3; ++e) hn::Store(sv[e], d, out[18 + e]);
+  for (std::size_t l = 0; l < count; ++l) {
+    const std::size_t q = q0 + l;
+    StoredReal* F = p.F[q].data();
+    for (int e = 0; e < 9; ++e) F[e] = static_cast<StoredReal>(out[e][l]);
+    if constexpr (kAffine) {
+      StoredReal* Cq = p.C[q].data();
+      for (int e = 0; e < 9; ++e) Cq[e] = static_cast<StoredReal>(out[9 + e][l]);
+    }
+    p.v[q] = Vec3(out[18][l], out[19][l], out[20][l]);
+  }
+}
+
+template <Kernel K, Transfer T>
+void gather_all(const Grid& g, Real dt, Particles& p) {
+  const std::size_t n = p.size();
+  const std::ptrdiff_t batches = static_cast<std::ptrdiff_t>((n + kLanes - 1) / kLanes);
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+  for (std::ptrdiff_t b = 0; b < batches; ++b) {
+    const std::size_t q0 = static_cast<std::size_t>(b) * kLanes;
+    gather_batch<K, T>(g, dt, q0, std::min(kLanes, n - q0), p);
+  }
+}
+
+/// Calls f.template operator()<K, T>() for the transfers the SIMD path handles.
+template <class Fn>
+void dispatch(Transfer t, Kernel k, Fn&& f) {
+  dispatch_kernel(k, [&]<Kernel K>() {
+    switch (t) {
+      case Transfer::apic: f.template operator()<K, Transfer::apic>(); break;
+      case Transfer::pic: f.template operator()<K, Transfer::pic>(); break;
+      case Transfer::mls:
+        if constexpr (K != Kernel::linear) f.template operator()<K, Transfer::mls>();
+        else throw std::invalid_argument("MLS needs the quadratic or cubic kernel");
+        break;
+      case Transfer::flip: throw std::invalid_argument("the SIMD transfers do not handle FLIP");
+    }
+  });
+}
+
+}  // namespace
+
+void ScatterImpl(const Particles& p, const ParticleOrder& ord, Transfer t, Kernel k, Real dt,
+                 Grid& g) {
+  dispatch(t, k, [&]<Kernel K, Transfer T>() { scatter_all<K, T>(p, ord, dt, g); });
+}
+
+void GatherImpl(const Grid& g, Transfer t, Kernel k, Real dt, Particles& p) {
+  dispatch(t, k, [&]<Kernel K, Transfer T>() { gather_all<K, T>(g, dt, p); });
+}
+
+const char* TargetImpl() { return hwy::TargetName(HWY_TARGET); }
+#endif  // HWY_TARGET == HWY_SCALAR
+
+}  // namespace HWY_NAMESPACE
+}  // namespace mpm::simd
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace mpm::simd {
+
+HWY_EXPORT(ScatterImpl);
+HWY_EXPORT(GatherImpl);
+HWY_EXPORT(TargetImpl);
+
+bool supports(Transfer transfer, Kernel, const Grid& grid) {
+  return target_name() != nullptr && transfer != Transfer::flip && grid.mass.size() < (std::size_t{1} << 31);
+}
+
+void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, Kernel kernel,
+             Real dt, Grid& grid) {
+  HWY_DYNAMIC_DISPATCH(ScatterImpl)(p, order, transfer, kernel, dt, grid);
+}
+
+void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p) {
+  // Node velocities in float, one array per axis, for the lane gathers.
+  const std::size_t nodes = grid.mass.size();
+  grid.velocity_f.resize(3 * nodes);
+  const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(nodes);
+#pragma omp parallel for schedule(static) if (count >= kParallelMinItems)
+  for (std::ptrdiff_t i = 0; i < count; ++i)
+    for (int a = 0; a < 3; ++a)
+      grid.velocity_f[a * nodes + i] = static_cast<float>(grid.velocity[i][a]);
+  HWY_DYNAMIC_DISPATCH(GatherImpl)(grid, transfer, kernel, dt, p);
+}
+
+const char* target_name() {
+  static const char* const name = HWY_DYNAMIC_DISPATCH(TargetImpl)();
+  return name;
+}
+
+}  // namespace mpm::simd
+#endif  // HWY_ONCE

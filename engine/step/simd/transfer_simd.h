@@ -1,0 +1,37 @@
+#pragma once
+/// \file The transfers in float SIMD (Highway, run-time dispatch over SSE4 / AVX2 / AVX-512).
+///
+/// Same physics as the scalar path of engine/step/transfer.cpp, in float lanes: results agree
+/// with it to float rounding (tests/transfers/test_simd.cpp), and are bit-identical for any
+/// thread count on one machine (every sum runs in the same order; a particle's lane does not
+/// depend on its neighbours).
+
+#include "engine/core/particles.h"
+#include "engine/scene/scene_desc.h"
+#include "engine/step/grid.h"
+#include "engine/step/kernels.h"
+#include "engine/step/transfer.h"
+
+namespace mpm::simd {
+
+/// True if the SIMD path handles `transfer` with `kernel` (PIC, APIC and MLS; FLIP, which
+/// keeps a separate force and old velocity, runs the scalar path). The grid must hold fewer
+/// than 2^31 nodes (32-bit gather indices).
+bool supports(Transfer transfer, Kernel kernel, const Grid& grid);
+
+/// particles_to_grid's scatter (the grid already cleared) with one SIMD lane per stencil node:
+/// for each particle of a stencil base cell, all N^3 node contributions at once, summed over
+/// the cell's particles in registers, then added to the grid once per cell.
+void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, Kernel kernel,
+             Real dt, Grid& grid);
+
+/// grid_to_particles with one SIMD lane per particle, L consecutive particles at a time: the
+/// weights computed once per lane set, node velocities gathered from grid.velocity_f (which
+/// this fills from grid.velocity).
+void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p);
+
+/// Name of the instruction set the dispatch chose on this machine, e.g. "AVX3", or nullptr
+/// if it has none the SIMD path can use (then the scalar path runs).
+const char* target_name();
+
+}  // namespace mpm::simd
