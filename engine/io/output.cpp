@@ -302,7 +302,8 @@ void FrameOutput::write(const Simulation& sim, int frame) {
         cam.particle_radius = 0.6 * g.spacing().minCoeff() / std::cbrt(ppc);
         std::filesystem::create_directories(dir_ / "preview");
         render_preview(numbered(dir_ / "preview", "frame_%05d.png", frame), view, cam,
-                       desc_.preview_size.x(), desc_.preview_size.y());
+                       desc_.preview_size.x(), desc_.preview_size.y(),
+                       preview_walls(sim.scene(), static_cast<double>(sim.time())));
         break;
       }
     }

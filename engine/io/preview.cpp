@@ -1,6 +1,7 @@
 #include "engine/io/preview.h"
 
 #include "engine/io/atomic_file.h"
+#include "engine/step/walls.h"
 
 #include <png.h>
 
@@ -71,7 +72,197 @@ std::uint8_t shade(std::uint8_t base, double intensity) {
   return static_cast<std::uint8_t>(std::lround(std::clamp(base * intensity, 0.0, 255.0)));
 }
 
+/// Relative depth by which a wall may lie behind a particle and still count as in front: more
+/// than float rounding of the depth buffer.
+constexpr double kDepthSlack = 1e-5;
+/// Relative depth within which a line counts as lying in a plane: not tinted by it (a line is
+/// wider than a pixel, so its depth and the plane's at one pixel differ at grazing angles).
+constexpr double kInPlane = 1e-2;
+/// Opacity of a plane wall's light and dark checkerboard squares.
+constexpr double kFillAlpha[2] = {0.25, 0.4};
+
+/// A unit vector perpendicular to unit vector `n`.
+Vec3 perpendicular(const Vec3& n) {
+  int least = 0;
+  for (int a = 1; a < 3; ++a)
+    if (std::abs(n[a]) < std::abs(n[least])) least = a;
+  return n.cross(Vec3::Unit(least)).normalized();
+}
+
+/// Corners of the polygon in which the plane through `point` with unit normal `n` cuts the box
+/// [lo, hi], in order around it; empty if the plane misses the box or only touches an edge.
+std::vector<Vec3> plane_cut(const Vec3& point, const Vec3& n, const Vec3& lo, const Vec3& hi) {
+  const double tol = 1e-12 * (hi - lo).norm();
+  const auto corner = [&](int c) {
+    return Vec3((c & 1) ? hi.x() : lo.x(), (c & 2) ? hi.y() : lo.y(), (c & 4) ? hi.z() : lo.z());
+  };
+  std::vector<Vec3> cut;
+  for (int c = 0; c < 8; ++c)
+    for (int axis = 0; axis < 3; ++axis) {
+      if (c & (1 << axis)) continue;  // each edge once: from corner c along +axis
+      const Vec3 a = corner(c), b = corner(c | (1 << axis));
+      const double da = (a - point).dot(n), db = (b - point).dot(n);
+      if ((da > tol && db > tol) || (da < -tol && db < -tol)) continue;
+      if (std::abs(da - db) <= tol) continue;  // the edge lies in the plane: others give its ends
+      const Vec3 x = a + (da / (da - db)) * (b - a);
+      const bool seen = std::any_of(cut.begin(), cut.end(),
+                                    [&](const Vec3& y) { return (x - y).norm() <= 1e3 * tol; });
+      if (!seen) cut.push_back(x);
+    }
+  if (cut.size() < 3) return {};
+  Vec3 centre = Vec3::Zero();
+  for (const Vec3& x : cut) centre += x;
+  centre /= static_cast<double>(cut.size());
+  const Vec3 u = perpendicular(n), v = n.cross(u);
+  std::sort(cut.begin(), cut.end(), [&](const Vec3& a, const Vec3& b) {
+    return std::atan2((a - centre).dot(v), (a - centre).dot(u)) <
+           std::atan2((b - centre).dot(v), (b - centre).dot(u));
+  });
+  return cut;
+}
+
+/// A picture being drawn: colours, the depth (along the view axis, m) of the particle each
+/// pixel shows, and of the wall line it shows (infinite where none).
+struct Canvas {
+  RgbImage& img;
+  std::vector<float>& depth;
+  const CameraFrame& cam;
+  std::vector<float> line_depth;
+};
+
+/// Draws the segment a-b as a line `radius` pixels about its centre, hidden behind nearer
+/// particles, and records its depth in line_depth.
+void draw_segment(Canvas& c, const Vec3& a, const Vec3& b, double radius, const Rgb& colour) {
+  const CameraFrame& f = c.cam;
+  const int width = c.img.width, height = c.img.height;
+  // Clip to the view frustum (widened by the line's radius and a pixel): in camera space each
+  // side is a linear function g of the segment's parameter s that must stay >= 0.
+  const auto to_camera = [&](const Vec3& p) {
+    const Vec3 d = p - f.eye;
+    return Vec3(d.dot(f.right), d.dot(f.up), d.dot(f.forward));
+  };
+  const Vec3 ca = to_camera(a), cb = to_camera(b);
+  const double m = radius + 1;
+  const double left = (-m - f.cx) / f.focal_px, right = (width + m - f.cx) / f.focal_px;
+  const double top = (f.cy + m) / f.focal_px, bottom = (f.cy - height - m) / f.focal_px;
+  const double near = 1e-9 * std::max(ca.norm(), cb.norm());
+  const auto sides = [&](const Vec3& q) {
+    return std::array<double, 5>{q.z() - near, q.x() - left * q.z(), right * q.z() - q.x(),
+                                 top * q.z() - q.y(), q.y() - bottom * q.z()};
+  };
+  const std::array<double, 5> ga = sides(ca), gb = sides(cb);
+  double s0 = 0, s1 = 1;
+  for (int k = 0; k < 5; ++k) {
+    if (ga[k] < 0 && gb[k] < 0) return;
+    if (ga[k] < 0) s0 = std::max(s0, ga[k] / (ga[k] - gb[k]));
+    if (gb[k] < 0) s1 = std::min(s1, ga[k] / (ga[k] - gb[k]));
+  }
+  if (!(s0 <= s1)) return;
+  const Vec3 p0 = a + s0 * (b - a), p1 = a + s1 * (b - a);
+  const Projection q0 = project_with(f, p0), q1 = project_with(f, p1);
+  const double length = std::hypot(q1.x - q0.x, q1.y - q0.y);
+  // Samples at most half a pixel apart on the picture; sigma runs evenly along the projected
+  // line, and s (along p0-p1) follows it perspective-correctly (1/depth is linear in sigma).
+  const int n = static_cast<int>(std::ceil(2 * length)) + 1;
+  for (int k = 0; k <= n; ++k) {
+    const double sigma = static_cast<double>(k) / n;
+    const double s = sigma * q0.depth / ((1 - sigma) * q1.depth + sigma * q0.depth);
+    const Projection q = project_with(f, p0 + s * (p1 - p0));
+    const int i0 = std::max(0, static_cast<int>(std::floor(q.x - radius)));
+    const int i1 = std::min(width - 1, static_cast<int>(std::ceil(q.x + radius)));
+    const int j0 = std::max(0, static_cast<int>(std::floor(q.y - radius)));
+    const int j1 = std::min(height - 1, static_cast<int>(std::ceil(q.y + radius)));
+    for (int j = j0; j <= j1; ++j)
+      for (int i = i0; i <= i1; ++i) {
+        const double dx = i + 0.5 - q.x, dy = j + 0.5 - q.y;
+        if (dx * dx + dy * dy > radius * radius) continue;
+        const std::size_t pix = static_cast<std::size_t>(j) * width + i;
+        if (q.depth > c.depth[pix] * (1 + kDepthSlack)) continue;
+        c.line_depth[pix] = std::min(c.line_depth[pix], static_cast<float>(q.depth));
+        for (int ch = 0; ch < 3; ++ch) c.img.pixels[3 * pix + ch] = colour[ch];
+      }
+  }
+}
+
+/// Blends a translucent checkerboard over every pixel whose view ray meets the plane through
+/// `point` with unit normal `n`, inside the box [lo, hi], nearer than the particle the pixel
+/// shows, and nearer than its wall line unless that line lies in the plane.
+void fill_plane(Canvas& c, const Vec3& point, const Vec3& n, const Vec3& lo, const Vec3& hi) {
+  const CameraFrame& f = c.cam;
+  const Vec3 u = perpendicular(n), v = n.cross(u);
+  const double square = (hi - lo).maxCoeff() / 10;
+  const double tol = 1e-9 * (hi - lo).norm();
+  for (int j = 0; j < c.img.height; ++j)
+    for (int i = 0; i < c.img.width; ++i) {
+      // The ray through the pixel's centre, scaled so that its depth grows 1 m per unit t.
+      const Vec3 d = f.forward + f.right * ((i + 0.5 - f.cx) / f.focal_px) +
+                     f.up * ((f.cy - (j + 0.5)) / f.focal_px);
+      const double denom = d.dot(n);
+      if (std::abs(denom) < 1e-12) continue;  // seen edge-on
+      const double t = (point - f.eye).dot(n) / denom;
+      if (!(t > 0)) continue;
+      const Vec3 hit = f.eye + t * d;
+      if (((hit - lo).array() < -tol).any() || ((hit - hi).array() > tol).any()) continue;
+      const std::size_t pix = static_cast<std::size_t>(j) * c.img.width + i;
+      if (t >= c.depth[pix] * (1 - kDepthSlack)) continue;
+      if (c.line_depth[pix] <= t * (1 + kInPlane)) continue;
+      const auto cell = [&](const Vec3& axis) {
+        return static_cast<long long>(std::floor((hit - point).dot(axis) / square));
+      };
+      const double alpha = kFillAlpha[(cell(u) + cell(v)) & 1];
+      for (int ch = 0; ch < 3; ++ch) {
+        std::uint8_t& p = c.img.pixels[3 * pix + ch];
+        p = static_cast<std::uint8_t>(std::lround((1 - alpha) * p + alpha * kPreviewWallFill[ch]));
+      }
+    }
+}
+
+/// Draws `walls` onto a picture whose particles are already drawn: lines first (hidden by
+/// particles in front), then the planes' checkerboards over whatever lies behind them.
+void draw_walls(Canvas& c, const PreviewWalls& walls) {
+  if (walls.walls.empty()) return;
+  c.line_depth.assign(c.depth.size(), std::numeric_limits<float>::infinity());
+  const double radius = 0.75 * std::max(1.0, c.img.height / 480.0);
+  const Vec3 lo = walls.clip_min, hi = walls.clip_max;
+  for (const WallDesc& w : walls.walls) {
+    if (w.shape == WallDesc::Shape::box) {
+      const auto corner = [&](int k) {
+        return Vec3((k & 1) ? w.max.x() : w.min.x(), (k & 2) ? w.max.y() : w.min.y(),
+                    (k & 4) ? w.max.z() : w.min.z());
+      };
+      for (int k = 0; k < 8; ++k)
+        for (int axis = 0; axis < 3; ++axis)
+          if (!(k & (1 << axis)))
+            draw_segment(c, corner(k), corner(k | (1 << axis)), radius, kPreviewWallLine);
+    } else {
+      const std::vector<Vec3> cut = plane_cut(w.point, w.normal.normalized(), lo, hi);
+      for (std::size_t k = 0; k < cut.size(); ++k)
+        draw_segment(c, cut[k], cut[(k + 1) % cut.size()], radius, kPreviewWallLine);
+    }
+  }
+  for (const WallDesc& w : walls.walls)
+    if (w.shape == WallDesc::Shape::plane) fill_plane(c, w.point, w.normal.normalized(), lo, hi);
+}
+
 }  // namespace
+
+PreviewWalls preview_walls(const SceneDesc& scene, double time) {
+  PreviewWalls out;
+  out.clip_min = scene.grid.origin;
+  out.clip_max = scene.grid.max;
+  for (const WallDesc& w : scene.walls) {
+    // The walls stage moves every plane of a wall by the same offset (build_wall_planes).
+    const WallPlane motion{w.point, w.normal, w.boundary, static_cast<Real>(w.friction),
+                           w.velocity, w.path};
+    const Vec3 d = motion.offset(static_cast<Real>(time));
+    WallDesc placed = w;
+    placed.point += d;
+    placed.min += d;
+    placed.max += d;
+    out.walls.push_back(std::move(placed));
+  }
+  return out;
+}
 
 Rgb object_colour(std::uint32_t object_id) {
   // Colour-blind-friendly hues (Okabe-Ito without black and grey), all far from the background.
@@ -115,7 +306,7 @@ PreviewCamera default_camera(const Vec3& grid_min, const Vec3& grid_max) {
 }
 
 RgbImage render_preview_image(const FrameView& frame, const PreviewCamera& camera, int width,
-                              int height) {
+                              int height, const PreviewWalls& walls) {
   if (frame.object_id.size() != frame.position.size())
     throw std::invalid_argument("preview: position and object_id differ in length");
   const CameraFrame cam = camera_frame(camera, width, height);
@@ -160,6 +351,8 @@ RgbImage render_preview_image(const FrameView& frame, const PreviewCamera& camer
         for (int c = 0; c < 3; ++c) img.pixels[3 * pix + c] = shade(base[c], intensity);
       }
   }
+  Canvas canvas{img, depth, cam, {}};
+  draw_walls(canvas, walls);
   return img;
 }
 
@@ -205,8 +398,9 @@ RgbImage read_png(const std::filesystem::path& file) {
 }
 
 void render_preview(const std::filesystem::path& png, const FrameView& frame,
-                    const PreviewCamera& camera, int width, int height) {
-  write_png(png, render_preview_image(frame, camera, width, height));
+                    const PreviewCamera& camera, int width, int height,
+                    const PreviewWalls& walls) {
+  write_png(png, render_preview_image(frame, camera, width, height, walls));
 }
 
 }  // namespace mpm

@@ -3,7 +3,9 @@
 ///
 /// No GPU and no display: each particle is projected through a pinhole camera and drawn as a
 /// disc shaded like a sphere (Lambert, one fixed light), with a depth buffer, coloured by
-/// object from a fixed palette on a light grey background.
+/// object from a fixed palette on a light grey background. The scene's walls are drawn with
+/// the same camera and depth buffer: box edges and the outline of each plane's cut through the
+/// grid box as dark grey lines, and each plane's cut as a translucent grey checkerboard.
 
 #include <array>
 #include <cstdint>
@@ -12,6 +14,7 @@
 
 #include "engine/io/frame_view.h"
 #include "engine/core/math.h"
+#include "engine/scene/scene_desc.h"
 
 namespace mpm {
 
@@ -29,6 +32,12 @@ using Rgb = std::array<std::uint8_t, 3>;
 
 /// Background colour of previews: light grey.
 inline constexpr Rgb kPreviewBackground = {224, 224, 224};
+
+/// Colour of wall lines (box edges, plane outlines): dark grey.
+inline constexpr Rgb kPreviewWallLine = {70, 70, 70};
+
+/// Colour a plane wall's translucent checkerboard blends towards: mid grey.
+inline constexpr Rgb kPreviewWallFill = {110, 110, 110};
 
 /// Unshaded colour of object `object_id`: a fixed palette of 8 colours, repeated.
 Rgb object_colour(std::uint32_t object_id);
@@ -68,13 +77,27 @@ Projection project(const PreviewCamera& camera, int width, int height, const Vec
 /// grid_max > grid_min in every axis.
 PreviewCamera default_camera(const Vec3& grid_min, const Vec3& grid_max);
 
+/// What a preview draws besides the particles: walls where they are at the frame's time.
+struct PreviewWalls {
+  std::vector<WallDesc> walls;    ///< Planes and boxes, already moved to their place (m).
+  Vec3 clip_min = Vec3::Zero();   ///< Planes are drawn where they cut this box (the grid), m.
+  Vec3 clip_max = Vec3::Ones();   ///< Maximum corner of that box, m.
+};
+
+/// The walls of `scene` at time `time` (a moving wall displaced as the walls stage moves it,
+/// engine/step/walls.h), clipped to the grid box.
+PreviewWalls preview_walls(const SceneDesc& scene, double time);
+
 /// Renders the particles of `frame` (position and object_id; velocity and J are not used, and
-/// may be empty) seen by `camera`. Particles behind the camera or not finite are skipped; every
-/// particle in view covers at least the pixel it lands on. Throws std::invalid_argument for
-/// position and object_id spans of unequal length, a degenerate camera, or a size outside
-/// 1..16384.
+/// may be empty) seen by `camera`, and `walls`. Particles behind the camera or not finite are
+/// skipped; every particle in view covers at least the pixel it lands on. A wall line is about
+/// 1.5 pixels wide at 480 rows (wider in proportion for taller pictures) and hidden behind
+/// particles in front of it; a plane's checkerboard (squares a tenth of the clip box's
+/// largest side) tints what lies behind it and leaves what is in front. Throws
+/// std::invalid_argument for position and object_id spans of unequal length, a degenerate
+/// camera, or a size outside 1..16384.
 RgbImage render_preview_image(const FrameView& frame, const PreviewCamera& camera, int width,
-                              int height);
+                              int height, const PreviewWalls& walls = {});
 
 /// Writes `image` as an 8-bit RGB PNG to `<file>.tmp` and renames it, so the file is whole or
 /// absent. Throws std::runtime_error on failure.
@@ -86,6 +109,7 @@ RgbImage read_png(const std::filesystem::path& file);
 
 /// render_preview_image, then write_png to `png`.
 void render_preview(const std::filesystem::path& png, const FrameView& frame,
-                    const PreviewCamera& camera, int width, int height);
+                    const PreviewCamera& camera, int width, int height,
+                    const PreviewWalls& walls = {});
 
 }  // namespace mpm
