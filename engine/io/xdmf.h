@@ -15,15 +15,23 @@ struct XdmfFrame {
   std::size_t particles = 0;  ///< Number of particles in the file.
 };
 
-/// Writes `xmf_file`: an XDMF 3 temporal collection with one Polyvertex grid per frame, in
-/// the given order. Geometry XYZ is `<h5>:/position` (float32, N x 3); node attributes are
-/// velocity (Vector, float32, N x 3), object_id (Scalar, int32) and J (Scalar, float32), the
-/// datasets write_frame_hdf5 writes. The topology has no connectivity array: ParaView's
-/// "XDMF Reader" makes one vertex cell per particle, its "Xdmf3 Reader" loads the points and
-/// their attributes without cells (show them with the Point Gaussian representation). Writes
-/// `<xmf_file>.tmp` and renames it, so the file is whole or absent. Throws
-/// std::invalid_argument for an empty file name, one containing ':', or a non-finite time,
-/// and std::runtime_error if the file cannot be written.
+/// Name of the file, beside `xmf_file`, that holds the connectivity write_xdmf shares
+/// between frames: `<stem>_connectivity.h5` (frames.xmf: frames_connectivity.h5).
+std::filesystem::path xdmf_connectivity_path(const std::filesystem::path& xmf_file);
+
+/// Writes `xmf_file`: an XDMF 3 temporal collection with one grid per frame, in the given
+/// order, that ParaView's default reader (Xdmf3ReaderS) shows as one vertex cell per particle.
+/// Geometry XYZ is `<h5>:/position` (float32, N x 3). The topology is Polyvertex, one node per
+/// element, whose connectivity (indices 0 .. N-1) all frames share: dataset `connectivity`
+/// (int32, as long as the largest frame) in xdmf_connectivity_path, written when missing or
+/// not exactly that, 4 bytes per particle once per run; a smaller frame takes its first N
+/// entries through a HyperSlab. Node attributes are the frame file's other datasets of N rows:
+/// N values a Scalar, N x 3 a Vector (velocity, object_id, J first, as write_frame_hdf5 writes
+/// them, then any others by name), read from the last frame's file; if that file cannot be
+/// read, velocity (float32, N x 3), object_id (int32) and J (float32). Writes both files to
+/// `*.tmp` and renames them, so each is whole or absent. Throws std::invalid_argument for an
+/// empty file name, one containing ':', or a non-finite time, and std::runtime_error if a
+/// file cannot be written.
 void write_xdmf(const std::filesystem::path& xmf_file, const std::vector<XdmfFrame>& frames);
 
 }  // namespace mpm
