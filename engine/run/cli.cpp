@@ -33,9 +33,9 @@ constexpr const char* kUsage = R"(mpm - a Material Point Method engine for the C
 
 Usage:
   mpm run SCENE.yaml [options]   simulate and write frames and report.yaml
-  mpm validate SCENE.yaml [--set KEY=VALUE ...]
+  mpm validate SCENE.yaml [--set KEY=VALUE ...] [--plugin PATH ...] [--allow-scene-plugins]
                                  check a scene and print what it would simulate
-  mpm materials [SCENE.yaml | PLUGIN.so]
+  mpm materials [SCENE.yaml | PLUGIN.so] [--plugin PATH ...]
                                  list every registered material (and a scene's or a file's
                                  plugins) with its keys, units, defaults and ranges
   mpm preview DIR [--fps N]      join DIR/preview/frame_*.png into DIR/preview.mp4 (ffmpeg)
@@ -62,6 +62,11 @@ Options of run:
   --frames N         simulate N frames instead of the scene's simulation.frames
   --set KEY=VALUE    override a scene value, e.g. --set grid.dims=64 --set objects[0].E=2e4
                      (repeatable; checked like the file)
+  --plugin PATH      load the material plugin PATH first (repeatable; also for validate,
+                     golden and materials); a scene's `plugins:` entry of its file name uses it
+  --allow-scene-plugins
+                     also load plugins the scene brings: found beside it, or named by a path
+                     outside $MPM_PLUGIN_PATH and the engine's lib/ (they run that code)
   --threads N        use N threads (default: all cores)
   --quiet            print only warnings and the final summary line
   --log-level LEVEL  trace, debug, info, warn, error or off (default info)
@@ -78,8 +83,8 @@ struct Args {
   std::string cases, csv;
   std::optional<long> particles;
   std::optional<int> frames, threads, fps;
-  std::vector<std::string> sets;
-  bool quiet = false, force = false, quick = false;
+  std::vector<std::string> sets, plugins;
+  bool quiet = false, force = false, quick = false, allow_scene_plugins = false;
 };
 
 [[noreturn]] void usage_error(const std::string& what) {
@@ -128,6 +133,10 @@ Args parse_args(int argc, char** argv) {
       a.threads = parse_count(w, value(), 1);
     } else if (w == "--set") {
       a.sets.push_back(value());
+    } else if (w == "--plugin") {
+      a.plugins.push_back(value());
+    } else if (w == "--allow-scene-plugins") {
+      a.allow_scene_plugins = true;
     } else if (w == "--cases") {
       a.cases = value();
     } else if (w == "--csv") {
@@ -189,11 +198,18 @@ std::atomic<bool> g_stop{false};
 
 extern "C" void on_signal(int) { g_stop.store(true); }
 
+/// The plugins the command line allows (--plugin, --allow-scene-plugins).
+mpm::PluginPolicy plugin_policy(const Args& args) {
+  return {{args.plugins.begin(), args.plugins.end()}, args.allow_scene_plugins};
+}
+
 int cmd_materials(const Args& args) {
   mpm::MaterialRegistry registry = mpm::builtin_registry();
   try {
+    for (const std::string& p : args.plugins) mpm::load_plugin(p, registry);
     if (args.scene.ends_with(".so")) mpm::load_plugin(args.scene, registry);
-    else if (!args.scene.empty()) mpm::load_scene(args.scene, registry);
+    else if (!args.scene.empty())
+      mpm::load_scene(args.scene, registry, {{}, true, plugin_policy(args)});
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return mpm::kExitBadInput;
@@ -291,6 +307,7 @@ int cmd_run(const Args& args) {
   try {
     mpm::LoadOptions options;
     for (const std::string& s : args.sets) options.overrides.push_back(mpm::parse_override(s));
+    options.plugins = plugin_policy(args);
     scene = mpm::load_scene(args.scene, registry, options);
     if (!args.formats.empty()) {
       scene.output.formats.clear();

@@ -180,8 +180,9 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
   o.material = r.require<std::string>("material");
   const MaterialInfo* info = registry.find(o.material);
   if (!info)
-    r.fail("material", "unknown material '" + o.material +
-                           "'; registered materials: " + registry.names());
+    r.fail("material", "unknown material '" + o.material + "'; registered materials: " +
+                           registry.names() + " (a plugin's materials need the plugin loaded: " +
+                           "list it under 'plugins:' or give --plugin PATH; docs/materials.md)");
   for (const ParamSpec& spec : info->params) {
     std::optional<double> v = r.get<double>(spec.name);
     if (!v && spec.required)
@@ -233,31 +234,6 @@ OutputDesc read_output(ParamReader r) {
   return o;
 }
 
-/// A plugin path as written in a scene: absolute, relative to the scene file, or a bare file
-/// name looked up in the scene's folder, then $MPM_PLUGIN_PATH (colon-separated), then the
-/// lib/ folder beside the running mpm's bin/ (where the build and the install put plugins).
-std::filesystem::path resolve_plugin(const std::string& written, const std::filesystem::path& dir) {
-  namespace fs = std::filesystem;
-  const fs::path p = written;
-  if (p.is_absolute()) return p;
-  if (p.has_parent_path()) return dir / p;
-  std::vector<fs::path> places{dir};
-  if (const char* env = std::getenv("MPM_PLUGIN_PATH")) {
-    std::string list = env;
-    for (std::size_t start = 0; start <= list.size();) {
-      const std::size_t end = std::min(list.find(':', start), list.size());
-      if (end > start) places.emplace_back(list.substr(start, end - start));
-      start = end + 1;
-    }
-  }
-  std::error_code ec;
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) places.push_back(exe.parent_path().parent_path() / "lib");
-  for (const fs::path& place : places)
-    if (fs::is_regular_file(place / p, ec)) return place / p;
-  return dir / p;  // not found: the loader reports it with this path
-}
-
 SceneDesc read_scene(const YAML::Node& root, const std::filesystem::path& file,
                      MaterialRegistry& registry, const LoadOptions& options) {
   const std::string fname = file.string();
@@ -267,7 +243,14 @@ SceneDesc read_scene(const YAML::Node& root, const std::filesystem::path& file,
   SceneDesc scene;
   scene.file = file;
   const std::filesystem::path dir = file.parent_path();
-  // Plugins first: objects may name the materials they add.
+  // Plugins first: objects may name the materials they add. The command line's come first.
+  for (const std::filesystem::path& f : options.plugins.files) {
+    try {
+      load_plugin(f, registry);
+    } catch (const PluginError& e) {
+      throw SceneError({"--plugin " + f.string()}, "", e.what());
+    }
+  }
   const YAML::Node plugins = r.sequence("plugins");
   for (std::size_t i = 0; i < plugins.size(); ++i) {
     const std::string key = "plugins[" + std::to_string(i) + "]";
@@ -275,8 +258,9 @@ SceneDesc read_scene(const YAML::Node& root, const std::filesystem::path& file,
       throw SceneError(node_loc(plugins[i], fname), key, "expected a path to a shared library");
     if (!options.load_plugins)
       throw SceneError(node_loc(plugins[i], fname), key, "plugins are disabled here");
-    const std::filesystem::path lib = resolve_plugin(plugins[i].Scalar(), dir);
+    std::filesystem::path lib;
     try {
+      lib = find_scene_plugin(plugins[i].Scalar(), dir, options.plugins);
       load_plugin(lib, registry);
     } catch (const PluginError& e) {
       throw SceneError(node_loc(plugins[i], fname), key, e.what());

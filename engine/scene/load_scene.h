@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/scene/plugin_search.h"
 #include "engine/scene/scene_desc.h"
 #include "materials/registry.h"
 
@@ -21,6 +22,7 @@ struct SceneOverride {
 struct LoadOptions {
   std::vector<SceneOverride> overrides;  ///< Applied to the document before validation.
   bool load_plugins = true;              ///< False rejects any `plugins:` entry (fuzzing).
+  PluginPolicy plugins;  ///< `--plugin` files, loaded first, and where scene plugins may be.
 };
 
 /// The format called `name` (hdf5, bgeo, ply, png), or std::nullopt.

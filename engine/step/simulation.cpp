@@ -123,8 +123,17 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
 
     const MaterialInfo* mat = registry.find(od.material);
     if (!mat) throw SceneError(od.loc, key + ".material", "unknown material '" + od.material + "'");
-    sim->materials_.push_back(
-        {info.first, n, mat->create(od.params, GroupInfo{density, n})});
+    // A factory may reject a combination of parameters by throwing (docs/materials.md).
+    std::unique_ptr<MaterialGroup> group;
+    try {
+      group = mat->create(od.params, GroupInfo{density, n});
+    } catch (const std::exception& e) {
+      throw SceneError(od.loc, key, "material '" + od.material + "' rejects the parameters of " +
+                                        "object '" + od.name + "': " + e.what());
+    }
+    if (!group)
+      throw SceneError(od.loc, key, "material '" + od.material + "' built no material group");
+    sim->materials_.push_back({info.first, n, std::move(group)});
     sim->objects_.push_back(info);
   }
   P.stress.assign(P.size(), StoredMat3::Zero());

@@ -55,7 +55,7 @@ SceneDesc bench_scene(const std::string& material, long particles, double domain
 BenchResult run_whole_scene(const std::string& name) {
   MaterialRegistry registry = builtin_registry();
   const SceneDesc scene = load_scene(std::filesystem::path(MPM_SOURCE_DIR) / "scenes" /
-                                         (name + ".yaml"), registry, LoadOptions{{}, false});
+                                         (name + ".yaml"), registry, LoadOptions{{}, false, {}});
   const auto sim = Simulation::create(scene, registry);
   const RunResult run = run_frames(*sim, scene.simulation.frames, scene.simulation.frame_dt, {});
   if (run.status != "ok") throw std::runtime_error(name + " ended " + run.status);

@@ -1,5 +1,6 @@
 // Deliberately broken plugins, one per BAD_* definition, for the loader's error tests.
 #include <memory>
+#include <stdexcept>
 
 #include "materials/elastic_group.h"
 #include "materials/corotated.h"
@@ -28,4 +29,17 @@ extern "C" int mpm_plugin_abi_version() { return mpm::kPluginAbiVersion + 100; }
 extern "C" void mpm_register_materials(mpm::MaterialRegistry& r) { r.add(named("future")); }
 #elif defined(BAD_NO_ENTRY)
 extern "C" int some_other_function() { return 1; }
+#elif defined(BAD_THROWS)
+// A material whose factory rejects a combination of parameters, as docs/materials.md shows.
+void register_picky(mpm::MaterialRegistry& r) {
+  mpm::MaterialInfo m = named("picky");
+  auto build = m.create;
+  m.create = [build](const mpm::ParamValues& v, const mpm::GroupInfo& g) {
+    if (v.at("E") > 1e6 && v.at("nu") > 0.4)
+      throw std::invalid_argument("E > 1e6 with nu > 0.4 is too stiff for this model");
+    return build(v, g);
+  };
+  r.add(m);
+}
+MPM_DECLARE_PLUGIN(register_picky)
 #endif

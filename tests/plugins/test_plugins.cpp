@@ -2,6 +2,12 @@
 // file and the reason, never a crash.
 #include <catch2/catch.hpp>
 
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
 #include "materials/plugin.h"
 #include "support/helpers.h"
 
@@ -19,6 +25,38 @@ std::string load_error(const std::string& file) {
   }
   FAIL("expected a PluginError for " << file);
   return "";
+}
+
+/// Runs `mpm ARGS` (with `env` before it, e.g. "MPM_PLUGIN_PATH=/x"), returning the exit code
+/// and what it printed on stderr.
+std::pair<int, std::string> run_mpm(const std::string& args, const std::filesystem::path& dir,
+                                    const std::string& env = "") {
+  const auto err = dir / "stderr.txt";
+  const std::string cmd = "env -u MPM_PLUGIN_PATH " + env + " " + MPM_BINARY + " " + args +
+                          " > /dev/null 2> " + err.string();
+  const int status = std::system(cmd.c_str());
+  std::ifstream in(err);
+  std::stringstream text;
+  text << in.rdbuf();
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
+}
+
+/// A one-object scene of `material` with the given E and nu (the object is on line 5), that
+/// lists `plugin` (if not empty).
+std::string plugin_scene(const std::string& plugin, const std::string& material,
+                         const std::string& E = "1.0e4", const std::string& nu = "0.3") {
+  return (plugin.empty() ? std::string("\n") : "plugins: [" + plugin + "]\n") +
+         "simulation: {frames: 1, frame_dt: 0.01, dt: 1.0e-3}\n"
+         "grid: {max: [1, 1, 1], dims: 16}\n"
+         "objects:\n"
+         "  - name: cube\n"
+         "    mesh: " + test::cube_mesh() + "\n"
+         "    scale: 0.3\n"
+         "    offset: [0.5, 0.5, 0.5]\n"
+         "    density: 1000\n"
+         "    material: " + material + "\n"
+         "    E: " + E + "\n"
+         "    nu: " + nu + "\n";
 }
 
 }  // namespace
@@ -53,5 +91,97 @@ TEST_CASE("plugins: a scene with a broken plugin names the scene line", "[plugin
     CHECK_THAT(e.what(), Contains("test.yaml:1:11"));
     CHECK_THAT(e.what(), Contains("plugins[0]"));
     CHECK_THAT(e.what(), Contains("registers no material"));
+  }
+}
+
+TEST_CASE("plugins: a factory that rejects its parameters is a scene error at the object",
+          "[plugins]") {
+  const auto dir = test::temp_dir("plugin_throws");
+  std::ofstream(dir / "stiff.yaml") << plugin_scene(BAD_PLUGIN_THROWS, "picky", "2.0e6", "0.45");
+  std::ofstream(dir / "fine.yaml") << plugin_scene(BAD_PLUGIN_THROWS, "picky", "2.0e6", "0.3");
+  for (const std::string command : {"validate", "run"}) {
+    INFO("mpm " << command);
+    const std::string out = command == "run" ? " --out " + (dir / "out").string() : "";
+    const auto [code, message] = run_mpm(command + " " + (dir / "stiff.yaml").string() + out, dir);
+    CHECK(code == 2);
+    CHECK_THAT(message, Contains("stiff.yaml:5:5: objects[0]"));
+    CHECK_THAT(message, Contains("material 'picky' rejects the parameters of object 'cube'"));
+    CHECK_THAT(message, Contains("too stiff for this model"));
+    CHECK_THAT(message, !Contains("terminate"));
+  }
+  CHECK(run_mpm("validate " + (dir / "fine.yaml").string(), dir).first == 0);
+}
+
+TEST_CASE("plugins: only from places the user chose", "[plugins]") {
+  const auto dir = test::temp_dir("plugin_places");
+  // A copy under a name the engine's lib/ does not hold: found only beside the scene.
+  std::filesystem::copy_file(MPM_STVK_PLUGIN, dir / "libmy_stvk.so");
+  std::ofstream(dir / "beside.yaml") << plugin_scene("libmy_stvk.so", "stvk");
+  std::ofstream(dir / "relative.yaml") << plugin_scene("./libmy_stvk.so", "stvk");
+  std::ofstream(dir / "none.yaml") << plugin_scene("", "stvk");
+  const std::string beside = (dir / "beside.yaml").string();
+  const std::string relative = (dir / "relative.yaml").string();
+  const std::string plugin = (dir / "libmy_stvk.so").string();
+
+  SECTION("a plugin beside the scene is refused, and the message says how to allow it") {
+    for (const std::string command : {"validate", "run", "materials"}) {
+      INFO("mpm " << command);
+      const std::string out = command == "run" ? " --out " + (dir / "out").string() : "";
+      const auto [code, message] = run_mpm(command + " " + beside + out, dir);
+      CHECK(code == 2);
+      CHECK_THAT(message, Contains("beside.yaml:1:11: plugins[0]"));
+      CHECK_THAT(message, Contains("found only beside the scene"));
+      CHECK_THAT(message, Contains("--allow-scene-plugins"));
+    }
+    CHECK(!std::filesystem::exists(dir / "out"));
+  }
+  SECTION("a path relative to the scene is refused too") {
+    const auto [code, message] = run_mpm("validate " + relative, dir);
+    CHECK(code == 2);
+    CHECK_THAT(message, Contains("relative.yaml:1:11: plugins[0]"));
+    CHECK_THAT(message, Contains("--allow-scene-plugins"));
+  }
+  SECTION("--allow-scene-plugins loads them") {
+    CHECK(run_mpm("validate " + beside + " --allow-scene-plugins", dir).first == 0);
+    CHECK(run_mpm("validate " + relative + " --allow-scene-plugins", dir).first == 0);
+  }
+  SECTION("--plugin PATH loads a plugin, and the scene's entry of its name uses it") {
+    CHECK(run_mpm("validate " + beside + " --plugin " + plugin, dir).first == 0);
+    CHECK(run_mpm("validate " + relative + " --plugin " + plugin, dir).first == 0);
+    CHECK(run_mpm("validate " + (dir / "none.yaml").string() + " --plugin " + plugin, dir).first ==
+          0);
+    const auto [code, message] = run_mpm("validate " + beside + " --plugin /nonexistent/x.so", dir);
+    CHECK(code == 2);
+    CHECK_THAT(message, Contains("--plugin /nonexistent/x.so"));
+    CHECK_THAT(message, Contains("no such file"));
+  }
+  SECTION("a folder of $MPM_PLUGIN_PATH is a place the user chose") {
+    const std::string env = "MPM_PLUGIN_PATH=/nonexistent:" + dir.string();
+    CHECK(run_mpm("validate " + beside, dir, env).first == 0);
+    CHECK(run_mpm("validate " + relative, dir, env).first == 0);
+  }
+}
+
+TEST_CASE("plugins: a plugin not found lists the folders searched; an unknown material says "
+          "how to load a plugin",
+          "[plugins]") {
+  const auto dir = test::temp_dir("plugin_missing");
+  std::ofstream(dir / "missing.yaml") << plugin_scene("libnowhere.so", "stvk");
+  std::ofstream(dir / "unknown.yaml") << plugin_scene("", "stvk");
+  {
+    const auto [code, message] =
+        run_mpm("validate " + (dir / "missing.yaml").string(), dir, "MPM_PLUGIN_PATH=/opt/mine");
+    CHECK(code == 2);
+    CHECK_THAT(message, Contains("missing.yaml:1:11: plugins[0]"));
+    CHECK_THAT(message, Contains("plugin 'libnowhere.so' not found; searched:"));
+    CHECK_THAT(message, Contains("/opt/mine ($MPM_PLUGIN_PATH)"));
+    const std::string lib = std::filesystem::path(MPM_BINARY).parent_path().parent_path() / "lib";
+    CHECK_THAT(message, Contains(lib + " (the lib/ beside the engine's bin/)"));
+  }
+  {
+    const auto [code, message] = run_mpm("validate " + (dir / "unknown.yaml").string(), dir);
+    CHECK(code == 2);
+    CHECK_THAT(message, Contains("unknown material 'stvk'"));
+    CHECK_THAT(message, Contains("list it under 'plugins:' or give --plugin PATH"));
   }
 }

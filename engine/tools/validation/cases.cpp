@@ -391,7 +391,8 @@ std::filesystem::path scene_path(const Case& c) {
 
 Outcome run_case(const Case& c, const std::vector<SceneOverride>& overrides) {
   MaterialRegistry registry = builtin_registry();
-  const SceneDesc scene = load_scene(scene_path(c), registry, LoadOptions{overrides, false});
+  const SceneDesc scene =
+      load_scene(scene_path(c), registry, LoadOptions{overrides, false, {}});
   std::unique_ptr<Simulation> sim = Simulation::create(scene, registry);
   std::unique_ptr<Probe> probe(c.make_probe());
   const RunResult r = run_frames(*sim, scene.simulation.frames, scene.simulation.frame_dt,

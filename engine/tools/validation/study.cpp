@@ -219,10 +219,10 @@ std::vector<StudyRow> run_study(const StudyOptions& opt,
       continue;
     const Case& c = *find_case(e.case_name);
     MaterialRegistry registry = builtin_registry();
-    const SceneDesc base = load_scene(scene_path(c), registry, LoadOptions{{}, false});
+    const SceneDesc base = load_scene(scene_path(c), registry, LoadOptions{{}, false, {}});
     for (const Setting& s : opt.quick ? e.quick : e.full) {
       const std::vector<SceneOverride> o = overrides_for(s, base);
-      const SceneDesc scene = load_scene(scene_path(c), registry, LoadOptions{o, false});
+      const SceneDesc scene = load_scene(scene_path(c), registry, LoadOptions{o, false, {}});
       StudyRow row;
       row.experiment = e.name;
       row.case_name = c.name;
