@@ -111,7 +111,7 @@ TEST_CASE("malformed scenes exit with code 2 and say where and what", "[scene]")
       {"object that samples nothing", "scale: 0.2", "scale: 0.001", {"samples zero particles"}},
       {"duplicate object names", "walls:", "  - {name: a, mesh: MESH, scale: 0.1, offset: [0.3, 0.3, 0.3], mass: 1, material: corotated, E: 1.0e4, nu: 0.3}\nwalls:", {"objects[1].name", "used twice"}},
       {"no objects", "objects:", "objects: []\nunused:", {"objects"}},
-      {"plugin that is missing", "", "plugins: [libnothing.so]\n", {"plugins[0]", "no such file"}},
+      {"plugin that is missing", "", "plugins: [libnothing.so]\n", {"plugins[0]", "not found; searched:"}},
       {"grid too large for memory", "dims: 20", "dims: 100000", {"grid.dims", "GB of memory"}},
       {"a list where a mapping belongs", "simulation:\n  frames: 2\n  dt: 1.0e-3\n", "simulation: [1, 2]\n", {"simulation", "expected a mapping"}},
       {"scene that is not a mapping", "", "- just a list\n", {"bad.yaml"}},
