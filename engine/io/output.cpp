@@ -357,7 +357,8 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
     << (r.loop_seconds > 0 ? steps / r.loop_seconds : 0.0);
   y << YAML::Key << "clamped_particles" << YAML::Value << sim.clamped_particles();
   y << YAML::Key << "stages" << YAML::Value << YAML::BeginMap;
-  for (const Stage& s : sim.stages()) y << YAML::Key << s.name << YAML::Value << s.seconds;
+  for (const auto& [name, seconds] : sim.stage_seconds())
+    y << YAML::Key << name << YAML::Value << seconds;
   y << YAML::Key << "output" << YAML::Value << seconds_;
   y << YAML::EndMap;
   y << YAML::Key << "energy_start" << YAML::Value << r.energy_start;

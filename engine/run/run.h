@@ -37,7 +37,7 @@ struct RunResult {
   Real energy_max = 0;        ///< Largest total energy less wall work at a frame end, J.
   int frames_done = 0;        ///< Frames completed after the initial state.
   double wall_seconds = 0;    ///< Whole run including output.
-  double loop_seconds = 0;    ///< Time inside substeps only.
+  double loop_seconds = 0;    ///< The substep loop: each substep and its dt bound.
   Real dt_min = 0;            ///< Smallest substep taken, s.
   Real dt_max = 0;            ///< Largest substep taken, s.
 };

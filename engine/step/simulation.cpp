@@ -205,6 +205,20 @@ Real Simulation::stable_dt() const {
   return s.dt ? std::min(*s.dt, bound) : bound;
 }
 
+Real Simulation::timed_stable_dt() {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Real dt = stable_dt();
+  bound_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return dt;
+}
+
+std::vector<std::pair<std::string, double>> Simulation::stage_seconds() const {
+  std::vector<std::pair<std::string, double>> out;
+  if (scene_.simulation.cfl) out.emplace_back("cfl_bound", bound_seconds_);
+  for (const Stage& st : stages_) out.emplace_back(st.name, st.seconds);
+  return out;
+}
+
 void Simulation::substep(Real dt) {
   using clock = std::chrono::steady_clock;
   for (Stage& st : stages_) {

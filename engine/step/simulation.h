@@ -4,6 +4,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "engine/step/grid.h"
@@ -51,6 +52,9 @@ class Simulation {
 
   /// Largest substep allowed now: the CFL bound (if cfl is set) capped by the fixed dt.
   Real stable_dt() const;
+  /// stable_dt(), timed: with cfl its seconds are the "cfl_bound" entry of stage_seconds().
+  /// The run calls it before every adaptive substep.
+  Real timed_stable_dt();
   /// cfl h / (c + |v|max): the CFL bound for CFL number `cfl`, with c the largest wave speed
   /// any material reports at the current F, s.
   Real cfl_bound(Real cfl) const;
@@ -71,6 +75,9 @@ class Simulation {
   std::vector<MaterialRange>& materials() { return materials_; }
   /// The stages of a substep, in order.
   const std::vector<Stage>& stages() const { return stages_; }
+  /// Seconds spent so far in each stage, in order, after "cfl_bound" (the wave-speed bound of
+  /// the adaptive dt, timed_stable_dt()) when the scene sets cfl: every timed part of a substep.
+  std::vector<std::pair<std::string, double>> stage_seconds() const;
   /// The scene this simulation was built from.
   const SceneDesc& scene() const { return scene_; }
 
@@ -115,6 +122,7 @@ class Simulation {
   std::vector<MaterialRange> materials_;
   std::vector<WallPlane> walls_;
   std::vector<Stage> stages_;
+  double bound_seconds_ = 0;
   Real time_ = 0;
   std::size_t substeps_ = 0;
   AdvectStats last_advect_;
