@@ -185,3 +185,41 @@ TEST_CASE("plugins: a plugin not found lists the folders searched; an unknown ma
     CHECK_THAT(message, Contains("list it under 'plugins:' or give --plugin PATH"));
   }
 }
+
+TEST_CASE("plugins: the example's wave speed bounds the acoustic speed, exactly at rest",
+          "[plugins]") {
+  MaterialRegistry r = builtin_registry();
+  load_plugin(MPM_STVK_PLUGIN, r);
+  const MaterialInfo& m = *r.find("stvk");
+  const checks::OneParticle p(m);  // E = 1e4, nu = 0.3 (the defaults), rho0 = 1000
+  const Lame l = lame_from_young(1.0e4, 0.3);
+  const double rho0 = 1000;
+  CHECK(p.wave_speed(Mat3::Identity()) ==
+        Approx(std::sqrt((l.lambda + 2 * l.mu) / rho0)).epsilon(1e-12));
+  // rho0 c^2 = A(a, F^T m) for polarisation a and current normal m, A(a, N) the second
+  // derivative of psi along a N^T: by central differences of P.
+  auto acoustic = [&](const Mat3& F, const Vec3& a, const Vec3& m_dir) {
+    const Vec3 N = F.transpose() * m_dir;
+    const Mat3 dF = a * N.transpose();
+    const double t = 1e-3;
+    return ((p.first_piola(F + t * dF) - p.first_piola(F - t * dF)).cwiseProduct(dF)).sum() /
+           (2 * t);
+  };
+  // A uniaxial stretch along a = m is where the bound is exact.
+  for (double s : {1.1, 1.3, 1.6}) {
+    const Mat3 F = Vec3(s, 1, 1).asDiagonal();
+    const double c = p.wave_speed(F);
+    INFO("stretch " << s);
+    CHECK(rho0 * c * c == Approx(acoustic(F, Vec3::UnitX(), Vec3::UnitX())).epsilon(1e-3));
+  }
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n;
+  for (int k = 0; k < 200; ++k) {
+    const Mat3 F = checks::random_rotation(rng) * checks::random_near_identity(rng, 0.4);
+    const Vec3 a = Vec3(n(rng), n(rng), n(rng)).normalized();
+    const Vec3 dir = Vec3(n(rng), n(rng), n(rng)).normalized();
+    const double c = p.wave_speed(F);
+    INFO("F =\n" << F << "\na = " << a.transpose() << ", m = " << dir.transpose());
+    CHECK(rho0 * c * c >= acoustic(F, a, dir) * (1 - 1e-3));
+  }
+}

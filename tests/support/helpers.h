@@ -8,6 +8,7 @@
 
 #include "engine/scene/load_scene.h"
 #include "engine/step/simulation.h"
+#include "materials/material_checks.h"
 
 namespace mpm::test {
 
@@ -33,7 +34,7 @@ inline SceneDesc scene_from(const std::string& yaml) {
 
 /// Machine epsilon of the particles' stored matrices (F, C, stress): float unless the build
 /// sets MPM_DOUBLE_PARTICLES. Tolerances that include storage rounding scale with it.
-inline constexpr double kStoredEps = std::numeric_limits<StoredReal>::epsilon();
+using checks::kStoredEps;
 
 /// Bound on APIC's relative angular momentum drift over `substeps`: exact in exact arithmetic
 /// (Jiang et al. 2015), so round-off (1e-11), plus the rounding of C to StoredReal in every
@@ -42,23 +43,10 @@ inline double apic_bound(std::size_t substeps) {
   return 1e-11 + static_cast<double>(substeps) * kStoredEps / 2;
 }
 
-/// `F` rounded to the stored precision, as the engine would keep it.
-inline Mat3 stored(const Mat3& F) { return to_real(to_stored(F)); }
-
-/// A random matrix with entries in [-scale, scale] added to the identity.
-inline Mat3 random_near_identity(std::mt19937& rng, double scale) {
-  std::uniform_real_distribution<double> u(-scale, scale);
-  Mat3 m;
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) m(i, j) = (i == j ? 1.0 : 0.0) + u(rng);
-  return m;
-}
-
-/// A uniformly random rotation.
-inline Mat3 random_rotation(std::mt19937& rng) {
-  std::normal_distribution<double> n;
-  Eigen::Quaterniond q(n(rng), n(rng), n(rng), n(rng));
-  return q.normalized().toRotationMatrix();
-}
+/// `F` rounded to the stored precision; random matrices near I; random rotations (shared with
+/// the generic material checks).
+using checks::random_near_identity;
+using checks::random_rotation;
+using checks::stored;
 
 }  // namespace mpm::test
