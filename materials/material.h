@@ -75,8 +75,10 @@ class MaterialGroup {
   /// Total elastic energy (J) stored in the range: sum of V0 * psi(F).
   virtual Real elastic_energy(std::span<const StoredMat3> F, Real volume0) const = 0;
 
-  /// Per-particle state beyond F (e.g. plastic Jp), flat; empty if none. Checkpoints save and
-  /// restore it through this view, so a resumed run continues bit for bit.
+  /// Per-particle state beyond F (e.g. plastic Jp), flat and particle-major (particle i's
+  /// values at [i s, (i + 1) s) for s = size / count); empty if none. Checkpoints save and
+  /// restore it through this view, so a resumed run continues bit for bit, and the reorder
+  /// stage moves each particle's values with the particle.
   virtual std::span<Real> state() { return {}; }
 };
 

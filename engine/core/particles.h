@@ -17,6 +17,9 @@ struct Particles {
   std::vector<StoredMat3> F;           ///< Deformation gradient (elastic part for plastic materials).
   std::vector<StoredMat3> C;           ///< APIC affine velocity, 1/s (empty unless transfer is apic).
   std::vector<std::uint32_t> object;   ///< Index of the object the particle belongs to.
+  std::vector<std::uint32_t> id;       ///< Stable id: the particle's index when sampled. The
+                                       ///< reorder stage moves particles in memory; frames are
+                                       ///< written in id order and carry it.
   std::vector<StoredMat3> stress;      ///< Scratch: -V0 tau, written by compute_stress.
   std::vector<Real> object_mass;       ///< Mass of one particle, per object, kg.
   std::vector<Real> object_volume0;    ///< Reference volume V0 of one particle, per object, m^3.

@@ -27,10 +27,10 @@ struct AttributeDef {
 
 /// The point attributes after P, in file order.
 constexpr AttributeDef kAttributes[] = {
-    {"v", 3, kVector}, {"object_id", 1, kInt}, {"J", 1, kFloat}};
+    {"v", 3, kVector}, {"object_id", 1, kInt}, {"J", 1, kFloat}, {"id", 1, kInt}};
 
 /// 32-bit values per point: P (4) then every attribute.
-constexpr std::size_t kValuesPerPoint = 4 + 3 + 1 + 1;
+constexpr std::size_t kValuesPerPoint = 4 + 3 + 1 + 1 + 1;
 
 /// Appends the low `bytes` bytes of `value` to `out`, most significant first.
 void put_be(std::string& out, std::uint32_t value, int bytes = 4) {
@@ -89,6 +89,9 @@ void write_bgeo(const std::filesystem::path& file, const FrameView& frame) {
   for (std::uint32_t id : frame.object_id)
     if (id > kMax)
       throw std::invalid_argument("object id " + std::to_string(id) + " does not fit a bgeo int");
+  for (std::uint32_t id : frame.particle_id)
+    if (id > kMax)
+      throw std::invalid_argument("particle id " + std::to_string(id) + " does not fit a bgeo int");
 
   std::string buf = "Bgeo";
   buf.push_back('V');
@@ -118,6 +121,7 @@ void write_bgeo(const std::filesystem::path& file, const FrameView& frame) {
     for (int a = 0; a < 3; ++a) put_float(buf, frame.velocity[i][a]);
     put_be(buf, frame.object_id[i]);
     put_float(buf, frame.J[i]);
+    put_be(buf, frame.particle_id[i]);
   }
   // No primitives and no detail attributes follow; then the "extra" section markers.
   buf.push_back('\x00');
@@ -165,12 +169,14 @@ BgeoPoints read_bgeo(const std::filesystem::path& file) {
   p.velocity.resize(3 * n);
   p.object_id.resize(n);
   p.J.resize(n);
+  p.id.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     for (int a = 0; a < 3; ++a) p.position[3 * i + a] = r.f32();
     if (r.f32() != 1.0f) r.fail("point " + std::to_string(i) + " has w != 1");
     for (int a = 0; a < 3; ++a) p.velocity[3 * i + a] = r.f32();
     p.object_id[i] = r.i32();
     p.J[i] = r.f32();
+    p.id[i] = r.i32();
   }
   if (r.u(1) != 0x00 || r.u(1) != 0xff) r.fail("trailer is not 0x00 0xff");
   return p;

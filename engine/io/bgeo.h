@@ -29,6 +29,7 @@ struct BgeoPoints {
   std::vector<float> velocity;  ///< N x 3, row-major (attribute v).
   std::vector<int> object_id;   ///< N.
   std::vector<float> J;         ///< N.
+  std::vector<int> id;          ///< N: the stable particle id (Houdini's `id` attribute).
 
   /// Number of points.
   std::size_t size() const { return object_id.size(); }

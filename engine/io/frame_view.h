@@ -19,19 +19,22 @@ struct FrameView {
   std::span<const Real> J;                   ///< Volume ratio det F.
   double time = 0;                           ///< Simulation time, s.
   int frame = 0;                             ///< Frame number; 0 is the initial state.
+  std::span<const std::uint32_t> particle_id;  ///< Stable particle id (Particles::id).
 
   /// Number of particles.
   std::size_t size() const { return position.size(); }
 };
 
-/// Throws std::invalid_argument unless all four spans of `view` have the same length.
+/// Throws std::invalid_argument unless all five spans of `view` have the same length.
 inline void check_frame_view(const FrameView& view) {
   const std::size_t n = view.position.size();
-  if (view.velocity.size() != n || view.object_id.size() != n || view.J.size() != n)
+  if (view.velocity.size() != n || view.object_id.size() != n || view.J.size() != n ||
+      view.particle_id.size() != n)
     throw std::invalid_argument(
         "frame view has spans of unequal length: position " + std::to_string(n) + ", velocity " +
         std::to_string(view.velocity.size()) + ", object_id " +
-        std::to_string(view.object_id.size()) + ", J " + std::to_string(view.J.size()));
+        std::to_string(view.object_id.size()) + ", J " + std::to_string(view.J.size()) +
+        ", particle_id " + std::to_string(view.particle_id.size()));
 }
 
 }  // namespace mpm

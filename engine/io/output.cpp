@@ -64,24 +64,50 @@ void write_attribute(hid_t file, const char* name, hid_t file_type, hid_t mem_ty
 
 }  // namespace
 
+FrameView frame_in_id_order(const Particles& p, Real time, int frame, FrameArrays& arrays) {
+  const std::size_t n = p.size();
+  arrays.J.resize(n);
+  arrays.id.resize(n);
+  bool in_order = true;
+  for (std::size_t q = 0; q < n; ++q) in_order = in_order && p.id[q] == q;
+  if (in_order) {
+    for (std::size_t q = 0; q < n; ++q) arrays.J[q] = to_real(p.F[q]).determinant();
+    std::copy(p.id.begin(), p.id.end(), arrays.id.begin());
+    return FrameView{p.x, p.v, p.object, arrays.J, static_cast<double>(time), frame, arrays.id};
+  }
+  arrays.x.resize(n);
+  arrays.v.resize(n);
+  arrays.object.resize(n);
+  for (std::size_t q = 0; q < n; ++q) {
+    const std::uint32_t i = p.id[q];
+    arrays.x[i] = p.x[q];
+    arrays.v[i] = p.v[q];
+    arrays.object[i] = p.object[q];
+    arrays.J[i] = to_real(p.F[q]).determinant();
+    arrays.id[i] = i;
+  }
+  return FrameView{arrays.x, arrays.v, arrays.object, arrays.J, static_cast<double>(time), frame,
+                   arrays.id};
+}
+
 std::filesystem::path frame_path(const std::filesystem::path& dir, int frame) {
   char name[32];
   std::snprintf(name, sizeof name, "frame_%05d.h5", frame);
   return dir / name;
 }
 
-void write_frame_hdf5(const std::filesystem::path& file, const Particles& p, Real time,
-                      int frame) {
-  const std::size_t n = p.size();
+void write_frame_hdf5(const std::filesystem::path& file, const FrameView& view) {
+  check_frame_view(view);
+  const std::size_t n = view.size();
   std::vector<float> pos(3 * n), vel(3 * n), J(n);
   std::vector<int> object(n);
   for (std::size_t i = 0; i < n; ++i) {
     for (int a = 0; a < 3; ++a) {
-      pos[3 * i + a] = static_cast<float>(p.x[i][a]);
-      vel[3 * i + a] = static_cast<float>(p.v[i][a]);
+      pos[3 * i + a] = static_cast<float>(view.position[i][a]);
+      vel[3 * i + a] = static_cast<float>(view.velocity[i][a]);
     }
-    J[i] = static_cast<float>(to_real(p.F[i]).determinant());
-    object[i] = static_cast<int>(p.object[i]);
+    J[i] = static_cast<float>(view.J[i]);
+    object[i] = static_cast<int>(view.object_id[i]);
   }
   quiet_hdf5();
   const std::filesystem::path tmp = temporary_path(file);
@@ -93,8 +119,9 @@ void write_frame_hdf5(const std::filesystem::path& file, const Particles& p, Rea
     write_dataset(f.id, "velocity", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 2, d2, vel.data());
     write_dataset(f.id, "object_id", H5T_STD_I32LE, H5T_NATIVE_INT, 1, d1, object.data());
     write_dataset(f.id, "J", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 1, d1, J.data());
-    write_attribute(f.id, "time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, static_cast<double>(time));
-    write_attribute(f.id, "frame", H5T_STD_I32LE, H5T_NATIVE_INT, frame);
+    write_dataset(f.id, "id", H5T_STD_U32LE, H5T_NATIVE_UINT32, 1, d1, view.particle_id.data());
+    write_attribute(f.id, "time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, view.time);
+    write_attribute(f.id, "frame", H5T_STD_I32LE, H5T_NATIVE_INT, view.frame);
     check(H5Fflush(f.id, H5F_SCOPE_GLOBAL), "frame file");
   }
   replace_file(tmp, file);
@@ -136,6 +163,7 @@ FrameData read_frame_hdf5(const std::filesystem::path& file) {
   d.velocity = read_dataset<float>(f.id, "velocity", H5T_NATIVE_FLOAT, 3);
   d.object_id = read_dataset<int>(f.id, "object_id", H5T_NATIVE_INT, 1);
   d.J = read_dataset<float>(f.id, "J", H5T_NATIVE_FLOAT, 1);
+  d.id = read_dataset<std::uint32_t>(f.id, "id", H5T_NATIVE_UINT32, 1);
   d.time = read_attribute<double>(f.id, "time", H5T_NATIVE_DOUBLE);
   d.frame = read_attribute<int>(f.id, "frame", H5T_NATIVE_INT);
   if (d.position.size() != 3 * d.size() || d.velocity.size() != 3 * d.size() ||
@@ -216,6 +244,10 @@ void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, 
     write_rows(f.id, "v", p.v, 3);
     write_rows(f.id, "F", p.F, 9);
     if (!p.C.empty()) write_rows(f.id, "C", p.C, 9);
+    // The particles in their memory order with their ids: the reorder stage's order decides
+    // the order of the sums in the grid, so a resumed run needs it to continue bit for bit.
+    const hsize_t d1[1] = {p.id.size()};
+    write_dataset(f.id, "id", H5T_STD_U32LE, H5T_NATIVE_UINT32, 1, d1, p.id.data());
     for (std::size_t g = 0; g < sim.materials().size(); ++g) {
       const std::span<Real> st = sim.materials()[g].material->state();
       const hsize_t dims[1] = {st.size()};
@@ -250,6 +282,12 @@ int restore_checkpoint(const std::filesystem::path& file, Simulation& sim) {
   read_rows(f.id, "v", p.v, 3);
   read_rows(f.id, "F", p.F, 9);
   if (!p.C.empty()) read_rows(f.id, "C", p.C, 9);
+  const std::vector<std::uint32_t> id =
+      read_dataset<std::uint32_t>(f.id, "id", H5T_NATIVE_UINT32, 1);
+  if (id.size() != p.id.size())
+    throw std::runtime_error("checkpoint: dataset id has " + std::to_string(id.size()) +
+                             " entries, the scene has " + std::to_string(p.id.size()));
+  p.id = id;
   for (std::size_t g = 0; g < sim.materials().size(); ++g) {
     const std::span<Real> st = sim.materials()[g].material->state();
     const std::string name = "material_state_" + std::to_string(g);
@@ -268,21 +306,18 @@ FrameOutput::FrameOutput(std::filesystem::path dir, const OutputDesc& desc, int 
 
 void FrameOutput::write(const Simulation& sim, int frame) {
   const auto t0 = std::chrono::steady_clock::now();
-  const Particles& p = sim.particles();
-  J_.resize(p.size());
-  for (std::size_t i = 0; i < p.size(); ++i) J_[i] = to_real(p.F[i]).determinant();
-  const FrameView view{p.x, p.v, p.object, J_, static_cast<double>(sim.time()), frame};
+  const FrameView view = frame_in_id_order(sim.particles(), sim.time(), frame, scratch_);
   for (Format f : desc_.formats) {
     switch (f) {
       case Format::hdf5: {
-        write_frame_hdf5(frame_path(dir_, frame), p, sim.time(), frame);
+        write_frame_hdf5(frame_path(dir_, frame), view);
         std::vector<XdmfFrame> index;
         for (int k = 0; k <= frame; ++k)
           if (std::filesystem::exists(frame_path(dir_, k)))
             index.push_back({frame_path(dir_, k).filename().string(),
                              k == frame ? static_cast<double>(sim.time())
                                         : k * sim.scene().simulation.frame_dt,
-                             p.size()});
+                             view.size()});
         write_xdmf(dir_ / "frames.xmf", index);
         break;
       }
@@ -308,6 +343,7 @@ void FrameOutput::write(const Simulation& sim, int frame) {
       }
     }
   }
+  scratch_ = FrameArrays{};  // frames are rare: give the memory back between them
   if (desc_.checkpoint) write_checkpoint(dir_ / "checkpoint.h5", sim, frame);
   seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   last_frame_ = frame;

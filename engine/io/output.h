@@ -4,16 +4,30 @@
 #include <filesystem>
 #include <vector>
 
+#include "engine/io/frame_view.h"
 #include "engine/run/run.h"
 #include "engine/scene/scene_desc.h"
 
 namespace mpm {
 
-/// Writes `p` as HDF5 datasets position (N x 3), velocity (N x 3), object_id (N), J (N), with
-/// attributes time and frame. Writes to a temporary name and renames, so a frame file is
-/// whole or absent. Throws std::runtime_error on failure.
-void write_frame_hdf5(const std::filesystem::path& file, const Particles& p, Real time,
-                      int frame);
+/// Writes `frame` as HDF5 datasets position (N x 3), velocity (N x 3), object_id (N), J (N),
+/// id (N), with attributes time and frame. Writes to a temporary name and renames, so a frame
+/// file is whole or absent. Throws std::runtime_error on failure.
+void write_frame_hdf5(const std::filesystem::path& file, const FrameView& frame);
+
+/// Arrays a FrameView can point into when the particles are not in id order.
+struct FrameArrays {
+  std::vector<Vec3> x;                 ///< Position, by id.
+  std::vector<Vec3> v;                 ///< Velocity, by id.
+  std::vector<std::uint32_t> object;   ///< Object index, by id.
+  std::vector<Real> J;                 ///< det F, by id.
+  std::vector<std::uint32_t> id;       ///< 0 .. N-1.
+};
+
+/// The particles as a frame in the order of their stable ids (Particles::id), whatever order
+/// the reorder stage left them in, so every frame lists the same particle at the same row.
+/// Points into `p` where it is already in id order, otherwise into `arrays`.
+FrameView frame_in_id_order(const Particles& p, Real time, int frame, FrameArrays& arrays);
 
 /// One frame file read back: the datasets write_frame_hdf5 writes.
 struct FrameData {
@@ -21,6 +35,7 @@ struct FrameData {
   std::vector<float> velocity;  ///< N x 3, row-major.
   std::vector<int> object_id;   ///< N.
   std::vector<float> J;         ///< N.
+  std::vector<std::uint32_t> id;  ///< N: the stable particle id.
   double time = 0;              ///< Attribute "time", s.
   int frame = 0;                ///< Attribute "frame".
   /// Number of particles.
@@ -66,7 +81,7 @@ class FrameOutput : public Observer {
   int resumed_frame_ = 0;
   int last_frame_ = -1;
   double seconds_ = 0;
-  std::vector<Real> J_;  // scratch: det F per particle
+  FrameArrays scratch_;  // the frame in id order, while it is written
 };
 
 }  // namespace mpm

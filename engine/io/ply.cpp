@@ -16,13 +16,14 @@ namespace mpm {
 
 namespace {
 
-/// Bytes per vertex: 7 floats and one int.
-constexpr std::size_t kRecordBytes = 8 * 4;
+/// Bytes per vertex: 7 floats and two ints.
+constexpr std::size_t kRecordBytes = 9 * 4;
 
 /// The property lines write_ply writes, in order.
 constexpr const char* kProperties[] = {
     "property float x",  "property float y",  "property float z",       "property float vx",
-    "property float vy", "property float vz", "property int object_id", "property float J"};
+    "property float vy", "property float vz", "property int object_id", "property float J",
+    "property uint id"};
 
 /// Appends the 4 bytes of `bits` to `out`, least significant first.
 void put_le(std::string& out, std::uint32_t bits) {
@@ -83,6 +84,7 @@ void write_ply(const std::filesystem::path& file, const FrameView& frame) {
       put_le(bytes, std::bit_cast<std::uint32_t>(float(frame.velocity[i][a])));
     put_le(bytes, frame.object_id[i]);
     put_le(bytes, std::bit_cast<std::uint32_t>(float(frame.J[i])));
+    put_le(bytes, frame.particle_id[i]);
   }
   write_file_whole(file, bytes);
 }
@@ -131,6 +133,7 @@ PlyPoints read_ply(const std::filesystem::path& file) {
   p.velocity.resize(3 * n);
   p.object_id.resize(n);
   p.J.resize(n);
+  p.id.resize(n);
   const char* r = data.data() + pos;
   for (std::size_t i = 0; i < n; ++i, r += kRecordBytes) {
     for (int a = 0; a < 3; ++a) p.position[3 * i + a] = std::bit_cast<float>(get_le(r + 4 * a));
@@ -138,6 +141,7 @@ PlyPoints read_ply(const std::filesystem::path& file) {
       p.velocity[3 * i + a] = std::bit_cast<float>(get_le(r + 12 + 4 * a));
     p.object_id[i] = std::bit_cast<std::int32_t>(get_le(r + 24));
     p.J[i] = std::bit_cast<float>(get_le(r + 28));
+    p.id[i] = get_le(r + 32);
   }
   return p;
 }

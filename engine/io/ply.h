@@ -22,6 +22,7 @@ struct PlyPoints {
   std::vector<float> velocity;  ///< N x 3, row-major.
   std::vector<int> object_id;   ///< N.
   std::vector<float> J;         ///< N.
+  std::vector<std::uint32_t> id;  ///< N: the stable particle id.
   double time = 0;              ///< Header comment "time", s.
   int frame = 0;                ///< Header comment "frame".
 

@@ -55,6 +55,8 @@ SimulationDesc read_simulation(ParamReader r) {
   s.damping = r.get_or("damping", s.damping);
   r.check_range("damping", s.damping, 0, 1e300);
   s.seed = r.get_or<std::uint64_t>("seed", s.seed);
+  s.reorder_every = r.get_or("reorder_every", s.reorder_every);
+  r.check_range("reorder_every", s.reorder_every, 0, 1 << 30);
   s.simd = r.get_or("simd", s.simd);
   if (s.transfer == Transfer::mls && s.kernel == Kernel::linear)
     r.fail("transfer", "transfer 'mls' needs kernel quadratic or cubic (its D is not constant "

@@ -37,6 +37,7 @@ struct SimulationDesc {
   Kernel kernel = Kernel::quadratic;  ///< Interpolation kernel.
   double damping = 0;                 ///< Grid velocity damping rate, 1/s (0: none).
   std::uint64_t seed = 1;             ///< Seed for particle sampling.
+  int reorder_every = 8;              ///< Substeps between particle reorders by cell (0: never).
   bool simd = true;                   ///< Float SIMD transfers; false: the scalar reference path.
 };
 

@@ -12,6 +12,7 @@
 
 #include "engine/scene/mesh.h"
 #include "engine/scene/sampling.h"
+#include "engine/step/reorder.h"
 
 namespace mpm {
 
@@ -136,6 +137,8 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     sim->materials_.push_back({info.first, n, std::move(group)});
     sim->objects_.push_back(info);
   }
+    for (std::size_t q = info.first; q < info.first + n; ++q)
+      P.id.push_back(static_cast<std::uint32_t>(q));
   P.stress.assign(P.size(), StoredMat3::Zero());
   sim->walls_ = build_wall_planes(scene.walls);
   sim->build_stages();
@@ -167,6 +170,13 @@ void Simulation::build_stages() {
   if (s.gravity.squaredNorm() > 0)
     add("gravity", [this](Real dt) { apply_gravity(dt, scene_.simulation.gravity, grid_); });
   if (s.damping > 0)
+  if (s.reorder_every > 0)
+    add("reorder", [this](Real) {
+      if (substeps_ % scene_.simulation.reorder_every != 0) return;
+      std::vector<ReorderRange> ranges;
+      for (auto& m : materials_) ranges.push_back({m.first, m.count, m.material->state()});
+      reorder_particles(ranges, order_, particles_, reorder_scratch_);
+    });
     add("damping", [this](Real dt) { apply_damping(dt, scene_.simulation.damping, grid_); });
   // Walls act on the grid velocities of the end of the substep: place them at time + dt.
   if (!walls_.empty())

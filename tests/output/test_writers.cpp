@@ -28,6 +28,7 @@ struct RandomFrame {
   std::vector<Vec3> x, v;
   std::vector<std::uint32_t> id;
   std::vector<Real> J;
+  std::vector<std::uint32_t> particle_id;  // a permutation, not 0..n-1: ids travel as given
   double time = 0.1 + 1.0 / 3.0;  // not a short decimal: the time must survive as text
   int frame = 7;
 
@@ -39,9 +40,10 @@ struct RandomFrame {
       v.emplace_back(vel(rng), vel(rng), vel(rng));
       id.push_back(i < n / 2 ? 0u : 1u);
       J.push_back(vol(rng));
+      particle_id.push_back(static_cast<std::uint32_t>((7 * i + 3) % n));
     }
   }
-  FrameView view() const { return FrameView{x, v, id, J, time, frame}; }
+  FrameView view() const { return FrameView{x, v, id, J, time, frame, particle_id}; }
 };
 
 std::string slurp(const std::filesystem::path& file) {
@@ -68,6 +70,7 @@ void check_same_as(const Points& got, const RandomFrame& f) {
     }
     wrong += got.object_id[i] != static_cast<int>(f.id[i]);
     wrong += got.J[i] != static_cast<float>(f.J[i]);
+    wrong += static_cast<std::uint32_t>(got.id[i]) != f.particle_id[i];
   }
   CHECK(wrong == 0);
   // And the float values are the doubles to float precision.
@@ -104,17 +107,19 @@ TEST_CASE("PLY: a random frame reads back exactly, header and byte order as spec
   CHECK(p.time == f.time);
   CHECK(p.frame == 7);
 
-  // The raw bytes, without the reader: header text, then 32 bytes per vertex, little-endian.
+  // The raw bytes, without the reader: header text, then 36 bytes per vertex, little-endian.
   const std::string raw = slurp(file);
   CHECK(raw.rfind("ply\nformat binary_little_endian 1.0\n", 0) == 0);
   CHECK(raw.find("\nelement vertex 1000\n") != std::string::npos);
   CHECK(raw.find("\nproperty float x\nproperty float y\nproperty float z\n"
                  "property float vx\nproperty float vy\nproperty float vz\n"
-                 "property int object_id\nproperty float J\nend_header\n") != std::string::npos);
+                 "property int object_id\nproperty float J\nproperty uint id\nend_header\n") !=
+        std::string::npos);
   const std::size_t body = raw.find("end_header\n") + std::strlen("end_header\n");
-  CHECK(raw.size() - body == 1000 * 32);
+  CHECK(raw.size() - body == 1000 * 36);
   CHECK(le_float(raw, body) == static_cast<float>(f.x[0][0]));
   CHECK(le_float(raw, body + 4 * 7) == static_cast<float>(f.J[0]));
+  CHECK(le_float(raw, body + 36 + 4 * 8) == std::bit_cast<float>(f.particle_id[1]));
 
   SECTION("writing again replaces the file") {
     const RandomFrame g(10, 2);
@@ -166,11 +171,13 @@ TEST_CASE("bgeo: a random frame reads back exactly, classic Bgeo v5 big-endian l
   CHECK(raw.substr(5, 4) == std::string("\0\0\0\5", 4));      // version 5
   CHECK(raw.substr(9, 4) == std::string("\0\0\x03\xe8", 4));  // 1000 points
   CHECK(raw.substr(13, 8) == std::string(8, '\0'));           // no primitives, point groups
-  CHECK(raw.substr(25, 4) == std::string("\0\0\0\3", 4));     // 3 point attributes
-  // Definitions: "v" vector of 3, "object_id" int, "J" float, each with zero defaults.
+  CHECK(raw.substr(25, 4) == std::string("\0\0\0\4", 4));     // 4 point attributes
+  // Definitions: "v" vector of 3, "object_id" int, "J" float, "id" int, zero defaults.
   CHECK(raw.substr(41, 9) == std::string("\0\1v\0\3\0\0\0\5", 9));
-  const std::size_t header = 41 + (2 + 1 + 2 + 4 + 12) + (2 + 9 + 2 + 4 + 4) + (2 + 1 + 2 + 4 + 4);
-  CHECK(raw.size() == header + 1000 * 36 + 2);
+  const std::size_t header = 41 + (2 + 1 + 2 + 4 + 12) + (2 + 9 + 2 + 4 + 4) +
+                             (2 + 1 + 2 + 4 + 4) + (2 + 2 + 2 + 4 + 4);
+  CHECK(raw.substr(header - 14, 14) == std::string("\0\2id\0\1\0\0\0\1\0\0\0\0", 14));
+  CHECK(raw.size() == header + 1000 * 40 + 2);
   CHECK(be_float(raw, header) == static_cast<float>(f.x[0][0]));
   CHECK(be_float(raw, header + 12) == 1.0f);  // w of P
   CHECK(be_float(raw, header + 16) == static_cast<float>(f.v[0][0]));
@@ -202,17 +209,6 @@ TEST_CASE("bgeo: a random frame reads back exactly, classic Bgeo v5 big-endian l
 
 namespace {
 
-/// Particles as write_frame_hdf5 takes them: n random particles of two objects.
-Particles random_particles(std::size_t n, unsigned seed) {
-  const RandomFrame f(n, seed);
-  Particles p;
-  p.x = f.x;
-  p.v = f.v;
-  p.object = f.id;
-  for (Real J : f.J) p.F.push_back(to_stored(Mat3::Identity() * std::cbrt(J)));
-  return p;
-}
-
 /// Value of attribute `name` in the first tag of `text` (empty if absent).
 std::string attr(const std::string& text, const std::string& name) {
   const std::regex re("\\b" + name + "=\"([^\"]*)\"");
@@ -229,7 +225,10 @@ TEST_CASE("XDMF: a temporal collection over the HDF5 frames, every path, time an
   const std::vector<double> times = {0.0, 1.0 / 24, 2.0 / 24};
   std::vector<XdmfFrame> frames;
   for (int k = 0; k < 3; ++k) {
-    write_frame_hdf5(frame_path(dir, k), random_particles(sizes[k], k + 1), times[k], k);
+    RandomFrame f(sizes[k], k + 1);
+    f.time = times[k];
+    f.frame = k;
+    write_frame_hdf5(frame_path(dir, k), f.view());
     frames.push_back({frame_path(dir, k).filename().string(), times[k], sizes[k]});
   }
   const auto xmf = dir / "particles.xmf";
