@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -16,6 +17,7 @@
 #include <spdlog/spdlog.h>
 
 #include "engine/tools/bench.h"
+#include "engine/tools/roofline.h"
 #include "engine/tools/validation/study.h"
 #include "engine/scene/load_scene.h"
 #include "engine/io/output.h"
@@ -39,9 +41,10 @@ Usage:
                                  list every registered material (and a scene's or a file's
                                  plugins) with its keys, units, defaults and ranges
   mpm preview DIR [--fps N]      join DIR/preview/frame_*.png into DIR/preview.mp4 (ffmpeg)
-  mpm bench [--cases jello,snow,sparse,two_cubes] [--particles N] [--threads N] [--csv FILE]
-                                 time standard cases (median of 3 after a warm-up;
-                                 two_cubes: the whole scene, once, about 10 minutes)
+  mpm bench [--cases jello,snow,sparse,two_cubes,machine] [--particles N] [--threads N]
+            [--csv FILE]         time standard cases (median of 3 after a warm-up;
+                                 two_cubes: the whole scene, once; machine: peak FLOP
+                                 rate and memory bandwidth)
   mpm study [--quick] [--cases SWEEP,...] -o DIR
                                  run the validation cases over sweeps of h, particles per
                                  cell, CFL, dt, transfer and kernel; write DIR/study.csv and
@@ -82,6 +85,7 @@ struct Args {
   std::vector<std::string> tols;
   std::string cases, csv;
   std::optional<long> particles;
+  std::vector<std::string> given;  ///< The options given, in order (to refuse ignored ones).
   std::optional<int> frames, threads, fps;
   std::vector<std::string> sets, plugins;
   bool quiet = false, force = false, quick = false, allow_scene_plugins = false;
@@ -121,6 +125,7 @@ Args parse_args(int argc, char** argv) {
     };
     if (w == "--help" || w == "-h") {
       std::fputs(kUsage, stdout);
+    if (w.size() > 1 && w[0] == '-') a.given.push_back(w);
       std::exit(mpm::kExitOk);
     } else if (w == "--version") {
       std::printf("mpm %s (commit %s)\n", MPM_VERSION, mpm::git_commit());
@@ -179,6 +184,42 @@ Args parse_args(int argc, char** argv) {
 
 int list_materials(const mpm::MaterialRegistry& registry) {
   for (const mpm::MaterialInfo& m : registry.all()) {
+/// The commands each option applies to; an option given to another command is refused rather
+/// than ignored. Options not listed (--quiet, --log-level) apply to every command.
+void check_options(const Args& a) {
+  static const std::vector<std::pair<std::string, std::vector<std::string>>> kApplies = {
+      {"--out", {"run"}},
+      {"--force", {"run", "golden"}},
+      {"--resume", {"run"}},
+      {"--format", {"run"}},
+      {"--frames", {"run", "golden", "compare"}},
+      {"--set", {"run", "validate", "golden"}},
+      {"--plugin", {"run", "validate", "golden", "materials"}},
+      {"--allow-scene-plugins", {"run", "validate", "golden", "materials"}},
+      {"--threads", {"run", "validate", "golden", "bench", "study"}},
+      {"--cases", {"bench", "study"}},
+      {"--csv", {"bench"}},
+      {"--particles", {"bench"}},
+      {"--tol", {"compare"}},
+      {"-o", {"golden", "study"}},
+      {"--fps", {"preview"}},
+      {"--quick", {"study"}},
+  };
+  const std::vector<std::string> known = {"run",   "validate", "materials", "preview",
+                                          "bench", "study",    "golden",    "compare"};
+  if (std::find(known.begin(), known.end(), a.command) == known.end()) return;
+  for (const std::string& flag : a.given)
+    for (const auto& [option, commands] : kApplies) {
+      if (flag != option ||
+          std::find(commands.begin(), commands.end(), a.command) != commands.end())
+        continue;
+      std::string list;
+      for (const std::string& c : commands) list += (list.empty() ? "" : ", ") + c;
+      usage_error("'mpm " + a.command + "' does not take " + option + " (it would be ignored; " +
+                  option + " is for: " + list + ")");
+    }
+}
+
     std::printf("%s: %s\n  reference: %s\n", m.name.c_str(), m.description.c_str(),
                 m.reference.c_str());
     std::printf("  %-22s %-8s %-10s %-16s %s\n", "key", "unit", "default", "range", "meaning");
@@ -257,6 +298,13 @@ int cmd_bench(const Args& args) {
   try {
     const auto results = mpm::run_benchmarks(opt);
     std::printf("%s", mpm::format_bench_table(results).c_str());
+    // `machine`: the peak FLOP rate and memory bandwidth, for the roofline.
+    if (const auto m = std::find(opt.cases.begin(), opt.cases.end(), "machine");
+        m != opt.cases.end()) {
+      opt.cases.erase(m);
+      std::printf("%s", mpm::format_machine_peaks(mpm::measure_machine_peaks(opt.threads)).c_str());
+      if (opt.cases.empty()) return mpm::kExitOk;
+    }
     if (!args.csv.empty()) {
       std::ofstream csv(args.csv);
       csv << mpm::format_bench_csv(results);
@@ -318,6 +366,7 @@ int cmd_run(const Args& args) {
                                                             "'; expected hdf5, bgeo, ply or png");
         scene.output.formats.push_back(*f);
       }
+    if (args.frames) scene.simulation.frames = *args.frames;  // the header says what will run
     }
     sim = mpm::Simulation::create(scene, registry);
     out = !args.resume.empty() ? std::filesystem::path(args.resume)
@@ -341,6 +390,9 @@ int cmd_run(const Args& args) {
       }
     }
   } catch (const mpm::SceneError& e) {
+      if (std::filesystem::exists(args.output_file) && !args.force)
+        throw mpm::SceneError({"-o"}, "", "'" + args.output_file +
+                                              "' exists; give --force to replace this golden");
     std::fprintf(stderr, "error: %s\n", e.what());
     return mpm::kExitBadInput;
   }
@@ -405,3 +457,4 @@ int run_cli(int argc, char** argv) {
 }
 
 }  // namespace mpm
+  check_options(args);

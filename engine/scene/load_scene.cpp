@@ -162,6 +162,10 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
     if (o.scale[a] == 0) r.fail("scale", "scale must not be zero");
   o.rotation_deg = r.get_or("rotation", o.rotation_deg);
   o.offset = r.get_or("offset", o.offset);
+  // Errors about where the object lies blame a --set that moved it, else the object.
+  o.placement_loc = o.loc;
+  for (const char* k : {"offset", "scale", "rotation"})
+    if (r.has(k) && r.loc(k).line == 0) o.placement_loc = r.loc(k);
   o.velocity = r.get_or("velocity", o.velocity);
   o.angular_velocity = r.get_or("angular_velocity", o.angular_velocity);
   o.velocity_gradient = r.get_or("velocity_gradient", o.velocity_gradient);
@@ -185,11 +189,12 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
     r.fail("material", "unknown material '" + o.material + "'; registered materials: " +
                            registry.names() + " (a plugin's materials need the plugin loaded: " +
                            "list it under 'plugins:' or give --plugin PATH; docs/materials.md)");
+  for (const ParamSpec& spec : info->params) r.has(spec.name);  // every key known first
   for (const ParamSpec& spec : info->params) {
     std::optional<double> v = r.get<double>(spec.name);
     if (!v && spec.required)
-      r.fail(spec.name, "missing required key '" + spec.name + "' (" + spec.description +
-                            ") for material '" + o.material + "'");
+      r.fail_missing(spec.name, "missing required key '" + spec.name + "' (" + spec.description +
+                                    ") for material '" + o.material + "'");
     const double value = v ? *v : spec.default_value;
     if (v) r.check_range(spec.name, value, spec.min, spec.max, spec.min_exclusive,
                          spec.max_exclusive);
@@ -364,7 +369,15 @@ void apply_override(YAML::Node root, const SceneOverride& o, const std::string& 
     }
     YAML::Node next = node[name];
     if (!next.IsDefined() || next.IsNull()) {
-      if (k[end] == '[') throw SceneError(where, o.key, "there is no list '" + done + "'");
+      if (k[end] == '[') {
+        std::vector<std::string> lists;
+        if (node.IsMap())
+          for (const auto& kv : node)
+            if (kv.second.IsSequence()) lists.push_back(kv.first.Scalar());
+        const std::string guess = closest_match(name, lists);
+        throw SceneError(where, o.key, "there is no list '" + done + "'" +
+                                           (guess.empty() ? "" : " (did you mean '" + guess + "'?)"));
+      }
       node[name] = YAML::Node(YAML::NodeType::Map);
     }
     node.reset(node[name]);
@@ -379,7 +392,8 @@ YAML::Node parse_yaml(const std::string& text, const std::string& fname) {
   } catch (const YAML::Exception& e) {
     FileLoc loc{fname, e.mark.line + 1, e.mark.column + 1};
     if (e.mark.line < 0) loc = {fname, 0, 0};
-    throw SceneError(loc, "", "YAML syntax error: " + e.msg);
+    throw SceneError(loc, "", "YAML syntax error: " + e.msg +
+                                  (e.mark.line < 0 ? "" : missing_colon_hint(text, loc.line)));
   }
 }
 
@@ -406,6 +420,7 @@ SceneDesc load_scene_from_string(const std::string& yaml, const std::filesystem:
   if (!options.overrides.empty() && !root.IsMap())
     throw SceneError({file_name.string()}, "", "a scene file must be a mapping of sections");
   for (const SceneOverride& o : options.overrides) apply_override(root, o, file_name.string());
+  check_missing_colons(root, yaml, file_name.string());
   try {
     return read_scene(root, file_name, registry, options);
   } catch (const YAML::Exception& e) {

@@ -3,9 +3,11 @@
 #include "materials/material.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <tuple>
 
 namespace mpm {
 
@@ -33,31 +35,162 @@ FileLoc node_loc(const YAML::Node& node, const std::string& file) {
   return {file, m.line + 1, m.column + 1};
 }
 
-std::string closest_match(const std::string& word, const std::vector<std::string>& candidates) {
-  auto distance = [](const std::string& a, const std::string& b) {
-    std::vector<std::size_t> prev(b.size() + 1), cur(b.size() + 1);
-    for (std::size_t j = 0; j <= b.size(); ++j) prev[j] = j;
-    for (std::size_t i = 1; i <= a.size(); ++i) {
-      cur[0] = i;
-      for (std::size_t j = 1; j <= b.size(); ++j) {
-        const bool same = std::tolower(a[i - 1]) == std::tolower(b[j - 1]);
-        cur[j] = std::min({prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (same ? 0 : 1)});
-      }
-      std::swap(prev, cur);
-    }
-    return prev[b.size()];
+namespace {
+
+/// Optimal-string-alignment distance (Damerau-Levenshtein without repeated edits of a
+/// substring): insertions, deletions, substitutions and swaps of two neighbours cost 1.
+/// Letters compare case-insensitively.
+std::size_t edit_distance(const std::string& a, const std::string& b) {
+  const auto same = [](char x, char y) {
+    return std::tolower(static_cast<unsigned char>(x)) == std::tolower(static_cast<unsigned char>(y));
   };
+  std::vector<std::vector<std::size_t>> d(a.size() + 1, std::vector<std::size_t>(b.size() + 1));
+  for (std::size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (std::size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i)
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1,
+                          d[i - 1][j - 1] + (same(a[i - 1], b[j - 1]) ? 0 : 1)});
+      if (i > 1 && j > 1 && same(a[i - 1], b[j - 2]) && same(a[i - 2], b[j - 1]))
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+    }
+  return d[a.size()][b.size()];
+}
+
+bool starts_with_nocase(const std::string& text, const std::string& prefix) {
+  return prefix.size() <= text.size() && edit_distance(text.substr(0, prefix.size()), prefix) ==
+                                             0;  // same letters, any case
+}
+
+}  // namespace
+
+std::string closest_match(const std::string& word, const std::vector<std::string>& candidates) {
+  if (word.empty()) return "";
+  // Rank: a candidate the word begins (a truncated key: "frame" -> "frames"), the shortest
+  // first; then the smallest edit distance, a word containing the candidate or contained in
+  // it counting as one edit ("output_dir" -> "output"); ties go to the candidate closest in
+  // length, then to the first in the list.
   std::string best;
-  std::size_t best_d = std::numeric_limits<std::size_t>::max();
+  std::size_t best_class = 2, best_d = std::numeric_limits<std::size_t>::max(), best_len = best_d;
   for (const auto& c : candidates) {
-    std::size_t d = distance(word, c);
-    // A prefix or a word containing the candidate ("youngs_modulus" -> "E" is too far).
-    if (word.find(c) != std::string::npos || c.find(word) != std::string::npos)
-      d = std::min(d, std::size_t(1));
-    if (d < best_d) best_d = d, best = c;
+    const std::size_t len = c.size() > word.size() ? c.size() - word.size()
+                                                    : word.size() - c.size();
+    std::size_t cls = 1, d = 0;
+    if (!starts_with_nocase(c, word)) {
+      cls = 2;
+      d = edit_distance(word, c);
+      const bool contains = c.size() >= 2 && word.size() >= 2 &&
+                            (word.find(c) != std::string::npos || c.find(word) != std::string::npos);
+      if (contains) d = std::min(d, std::size_t(1));
+      const std::size_t limit = std::max<std::size_t>(1, std::max(word.size(), c.size()) / 3);
+      if (d > limit) continue;
+    }
+    if (std::tie(cls, d, len) < std::tie(best_class, best_d, best_len))
+      best_class = cls, best_d = d, best_len = len, best = c;
   }
-  const std::size_t limit = std::max<std::size_t>(2, word.size() / 3);
-  return best_d <= limit ? best : "";
+  return best;
+}
+
+namespace {
+
+std::string trim(const std::string& s) {
+  const std::size_t a = s.find_first_not_of(" \t\r");
+  if (a == std::string::npos) return "";
+  return s.substr(a, s.find_last_not_of(" \t\r") - a + 1);
+}
+
+bool is_identifier(const std::string& w) {
+  if (w.empty() || !(std::isalpha(static_cast<unsigned char>(w[0])) || w[0] == '_')) return false;
+  return std::all_of(w.begin(), w.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
+  });
+}
+
+void check_scalars(const YAML::Node& n, const std::vector<std::string>& lines,
+                   const std::string& file, const std::string& path) {
+  if (n.IsMap()) {
+    for (auto it = n.begin(); it != n.end(); ++it)
+      check_scalars(it->second, lines, file,
+                    (path.empty() ? "" : path + ".") + it->first.Scalar());
+    return;
+  }
+  if (n.IsSequence()) {
+    for (std::size_t i = 0; i < n.size(); ++i)
+      check_scalars(n[i], lines, file, path + "[" + std::to_string(i) + "]");
+    return;
+  }
+  // Only plain (unquoted) scalars with a position are joined from several lines.
+  if (!n.IsScalar() || n.Tag() != "?") return;
+  const YAML::Mark m = n.Mark();
+  if (m.line < 0 || static_cast<std::size_t>(m.line) >= lines.size()) return;
+  const std::string& line = lines[m.line];
+  if (static_cast<std::size_t>(m.column) > line.size()) return;
+  std::string first = line.substr(m.column);
+  for (std::size_t c = first.find('#'); c != std::string::npos; c = first.find('#', c + 1))
+    if (c > 0 && (first[c - 1] == ' ' || first[c - 1] == '\t')) {
+      first.resize(c);
+      break;
+    }
+  first = trim(first);
+  const std::string& value = n.Scalar();
+  if (first.empty() || first.size() >= value.size() || value.compare(0, first.size(), first) != 0)
+    return;
+  // The value goes on past its first line: "word value" there is a key that lost its colon.
+  const std::string rest = trim(value.substr(first.size()));
+  std::istringstream words(rest);
+  std::string word, next;
+  if (!(words >> word >> next) || !is_identifier(word)) return;
+  FileLoc where = node_loc(n, file);
+  for (std::size_t l = m.line + 1; l < lines.size(); ++l) {
+    const std::string t = trim(lines[l]);
+    if (t.rfind(word, 0) == 0) {
+      where.line = static_cast<int>(l) + 1;
+      where.col = static_cast<int>(lines[l].find(word)) + 1;
+      break;
+    }
+  }
+  throw SceneError(where, path,
+                   "a colon seems to be missing after '" + word + "': YAML read '" + rest +
+                       "' on a later line as part of this value, which became '" + value +
+                       "'; write '" + word + ": " + trim(rest.substr(word.size())) +
+                       "' on a line of its own");
+}
+
+/// "cfl: 0.5" if `line` reads like a key and a value without the colon between them ("cfl
+/// 0.5", "- cfl 0.5"), else "".
+std::string colon_fix(std::string line) {
+  line = trim(line);
+  if (line.rfind("- ", 0) == 0) line = trim(line.substr(2));
+  if (line.empty() || line[0] == '#' || line.find(':') != std::string::npos) return "";
+  std::istringstream words(line);
+  std::string word, next;
+  if (!(words >> word >> next) || !is_identifier(word)) return "";
+  return word + ": " + trim(line.substr(word.size()));
+}
+
+}  // namespace
+
+std::string missing_colon_hint(const std::string& text, int line) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  // yaml-cpp reports the error at the next key after the line that lost its colon.
+  for (int l = std::min<int>(line, static_cast<int>(lines.size())) - 1; l >= 0 && l >= line - 4;
+       --l) {
+    const std::string fix = colon_fix(lines[l]);
+    if (!fix.empty())
+      return "; line " + std::to_string(l + 1) + " ('" + trim(lines[l]) +
+             "') seems to be missing a colon: write '" + fix + "'";
+  }
+  return "";
+}
+
+void check_missing_colons(const YAML::Node& root, const std::string& text,
+                          const std::string& file) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  check_scalars(root, lines, file, "");
 }
 
 ParamReader::ParamReader(const YAML::Node& node, std::string file, std::string path)
@@ -222,7 +355,7 @@ std::optional<T> ParamReader::get(const std::string& key) {
 
 template <class T>
 T ParamReader::require(const std::string& key) {
-  if (!has(key)) fail(key, "missing required key '" + key + "'");
+  if (!has(key)) fail_absent(key, "missing required key '" + key + "'");
   return convert<T>(value(key), *this, key);
 }
 
@@ -249,7 +382,7 @@ Vec3 ParamReader::get_vec3_or_scalar(const std::string& key, const Vec3& fallbac
 }
 
 ParamReader ParamReader::child(const std::string& key) {
-  if (!has(key)) fail(key, "missing required key '" + key + "'");
+  if (!has(key)) fail_absent(key, "missing required key '" + key + "'");
   return ParamReader(value(key), file_, key_path(key));
 }
 
@@ -260,20 +393,74 @@ YAML::Node ParamReader::sequence(const std::string& key) {
   return n;
 }
 
-void ParamReader::finish() const {
-  if (!node_.IsMap()) return;
-  const std::vector<std::string> known(known_.begin(), known_.end());
-  for (auto it = node_.begin(); it != node_.end(); ++it) {
-    const std::string k = it->first.Scalar();
-    if (known_.count(k)) continue;
-    std::string msg = "unknown key '" + k + "'";
-    const std::string guess = closest_match(k, known);
-    if (!guess.empty()) msg += " (did you mean '" + guess + "'?)";
-    std::string expected;
-    for (const auto& c : known) expected += (expected.empty() ? "" : ", ") + c;
-    msg += "; expected one of: " + expected;
-    throw SceneError(node_loc(it->first, file_), key_path(k), msg);
+std::vector<YAML::Node> ParamReader::unread_keys() const {
+  std::vector<YAML::Node> out;
+  if (!node_.IsMap()) return out;
+  for (auto it = node_.begin(); it != node_.end(); ++it)
+    if (!known_.count(it->first.Scalar())) out.push_back(it->first);
+  return out;
+}
+
+void ParamReader::fail_unknown(const YAML::Node& key, const std::string& guess,
+                               const std::string& also) const {
+  const std::string k = key.Scalar();
+  std::string msg = "unknown key '" + k + "'";
+  // "dt 0.5" as a key: a key and its value without the colon between them.
+  if (const std::string fix = colon_fix(k); !fix.empty()) {
+    msg += ": a colon seems to be missing; write '" + fix + "'";
+    const std::string word = fix.substr(0, fix.find(':'));
+    if (!known_.count(word)) {
+      const std::vector<std::string> known(known_.begin(), known_.end());
+      const std::string g = closest_match(word, known);
+      if (!g.empty()) msg += " (did you mean '" + g + "'?)";
+    }
+    throw SceneError(node_loc(key, file_), key_path(k), msg);
   }
+  if (!guess.empty()) msg += " (did you mean '" + guess + "'?)";
+  if (also.empty()) {
+    std::string expected;
+    for (const auto& c : known_) expected += (expected.empty() ? "" : ", ") + c;
+    msg += "; expected one of: " + expected;
+  } else {
+    msg += "; " + also;
+  }
+  throw SceneError(node_loc(key, file_), key_path(k), msg);
+}
+
+void ParamReader::fail_absent(const std::string& key, const std::string& what) const {
+  // Keys after this one are not looked up yet, so only a key one edit away (or a prefix
+  // either way: "dim" for "dims") is taken for this one misspelt.
+  for (const YAML::Node& k : unread_keys()) {
+    const std::string& w = k.Scalar();
+    if (w.empty()) continue;
+    const bool prefix = starts_with_nocase(key, w) || starts_with_nocase(w, key);
+    if (prefix || edit_distance(w, key) <= 1) fail_unknown(k, key, what);
+  }
+  fail(key, what);
+}
+
+void ParamReader::fail_missing(const std::string& key, const std::string& what) const {
+  const std::vector<YAML::Node> unread = unread_keys();
+  if (unread.empty()) fail(key, what);
+  // Every other key was looked up: a key left over is most likely the missing one, written
+  // another way ("youngs_modulus" for "E"). Take the one closest to `key`, else the first.
+  const YAML::Node* pick = &unread.front();
+  for (const YAML::Node& k : unread)
+    if (!closest_match(k.Scalar(), {key}).empty()) {
+      pick = &k;
+      break;
+    }
+  std::vector<std::string> known(known_.begin(), known_.end());
+  std::string guess = closest_match(pick->Scalar(), known);
+  if (guess.empty()) guess = key;
+  fail_unknown(*pick, guess, what);
+}
+
+void ParamReader::finish() const {
+  const std::vector<YAML::Node> unread = unread_keys();
+  if (unread.empty()) return;
+  const std::vector<std::string> known(known_.begin(), known_.end());
+  fail_unknown(unread.front(), closest_match(unread.front().Scalar(), known), "");
 }
 
 }  // namespace mpm

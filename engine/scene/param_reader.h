@@ -50,6 +50,12 @@ class ParamReader {
   /// Throws a SceneError about `key` (at its position, or the mapping's if absent).
   [[noreturn]] void fail(const std::string& key, const std::string& what) const;
 
+  /// Throws a SceneError about the required `key`, which is absent. Call it once every other
+  /// key of the mapping has been looked up: a key left over is then most likely `key` written
+  /// another way, so the error names that key at its own position and suggests its closest
+  /// known key, or `key` ("unknown key 'youngs_modulus' (did you mean 'E'?)"); `what` follows.
+  [[noreturn]] void fail_missing(const std::string& key, const std::string& what) const;
+
   /// Throws SceneError naming the first key that was never looked up.
   void finish() const;
 
@@ -62,6 +68,14 @@ class ParamReader {
 
  private:
   YAML::Node value(const std::string& key) const;
+  /// The keys of the mapping not looked up so far, in file order.
+  std::vector<YAML::Node> unread_keys() const;
+  /// Throws "unknown key" at `key`'s position, with `guess` as the suggestion (if not empty)
+  /// and `also` appended (if empty: the list of known keys).
+  [[noreturn]] void fail_unknown(const YAML::Node& key, const std::string& guess,
+                                 const std::string& also) const;
+  /// A required key is absent: blames an unread key one edit from it, else the mapping.
+  [[noreturn]] void fail_absent(const std::string& key, const std::string& what) const;
 
   YAML::Node node_;
   std::string file_;
@@ -72,7 +86,19 @@ class ParamReader {
 /// The position of a YAML node as a FileLoc (1-based).
 FileLoc node_loc(const YAML::Node& node, const std::string& file);
 
-/// The closest of `candidates` to `word` by edit distance, or "" if none is close.
+/// Throws a SceneError if a plain value in `root` runs on into a later line that reads like a key
+/// written without its colon: YAML joins "  cfl 0.5" below "  dt: 1.0e-3" into the value of dt,
+/// "1.0e-3 cfl 0.5". `text` is the source `root` was parsed from (nodes without a position, such
+/// as --set values, are skipped).
+void check_missing_colons(const YAML::Node& root, const std::string& text, const std::string& file);
+
+/// For a YAML syntax error at 1-based `line` of `text`: "; line N ('cfl 0.5') seems to be
+/// missing a colon: write 'cfl: 0.5'" if one of the few lines before it reads like a key and a
+/// value without the colon (yaml-cpp reports such a line at the next key), else "".
+std::string missing_colon_hint(const std::string& text, int line);
+
+/// The closest of `candidates` to `word`, or "" if none is close: a candidate that `word` begins
+/// (the shortest), else the smallest Damerau-Levenshtein distance, ties to the nearest length.
 std::string closest_match(const std::string& word, const std::vector<std::string>& candidates);
 
 }  // namespace mpm

@@ -78,6 +78,7 @@ struct ObjectDesc {
   ParamValues params;              ///< The material's parameters, validated.
   FileLoc loc;                     ///< Where the object starts in the scene file.
   FileLoc mesh_loc;                ///< Where its mesh path is written.
+  FileLoc placement_loc;           ///< Where its offset, scale or rotation was --set, else loc.
 };
 
 /// A keyframe of a moving wall: its offset from the start position at time t.

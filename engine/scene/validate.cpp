@@ -41,6 +41,40 @@ std::vector<std::pair<std::size_t, std::size_t>> overlapping_objects(const Simul
   return pairs;
 }
 
+/// Per wall and object, the particles that start on the wall's solid side: behind a plane, or
+/// outside a box (a box holds the bodies in).
+std::vector<std::string> objects_in_walls(const Simulation& sim) {
+  std::vector<std::string> w;
+  const Particles& p = sim.particles();
+  const std::vector<WallDesc>& walls = sim.scene().walls;
+  for (std::size_t k = 0; k < walls.size(); ++k) {
+    const std::vector<WallPlane> planes = build_wall_planes({walls[k]});
+    std::vector<std::size_t> inside_of(sim.objects().size(), 0);
+    for (std::size_t q = 0; q < p.size(); ++q)
+      for (const WallPlane& pl : planes)
+        if ((p.x[q] - pl.point - pl.offset(0)).dot(pl.normal) < 0) {
+          ++inside_of[p.object[q]];
+          break;
+        }
+    for (std::size_t o = 0; o < sim.objects().size(); ++o) {
+      const ObjectInfo& info = sim.objects()[o];
+      const std::size_t inside = inside_of[o];
+      if (inside == 0) continue;
+      const WallDesc& d = walls[k];
+      const std::string where =
+          d.shape == WallDesc::Shape::plane
+              ? fmt("behind the plane through [%g, %g, %g]", d.point.x(), d.point.y(), d.point.z()) +
+                    fmt(" with normal [%g, %g, %g]", d.normal.x(), d.normal.y(), d.normal.z())
+              : fmt("outside the box from [%g, %g, %g]", d.min.x(), d.min.y(), d.min.z()) +
+                    fmt(" to [%g, %g, %g]", d.max.x(), d.max.y(), d.max.z());
+      w.push_back("object '" + info.name + "' starts inside walls[" + std::to_string(k) + "]: " +
+                  std::to_string(inside) + " of " + std::to_string(info.count) +
+                  " particles lie " + where + "; the wall will push them out at once");
+    }
+  }
+  return w;
+}
+
 }  // namespace
 
 std::vector<std::string> scene_warnings(Simulation& sim) {
@@ -49,6 +83,7 @@ std::vector<std::string> scene_warnings(Simulation& sim) {
   for (const auto& [a, b] : overlapping_objects(sim))
     w.push_back("objects '" + sim.objects()[a].name + "' and '" + sim.objects()[b].name +
                 "' overlap at the start (they share grid cells)");
+  for (std::string& line : objects_in_walls(sim)) w.push_back(std::move(line));
   const Real bound = sim.cfl_bound(1.0);
   if (!scene.simulation.cfl && scene.simulation.dt && *scene.simulation.dt > bound)
     w.push_back(fmt("simulation.dt = %g s is above the CFL bound h / (c + |v|max) = %.3g s at "

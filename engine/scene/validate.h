@@ -9,8 +9,9 @@
 
 namespace mpm {
 
-/// Legal but likely wrong: overlapping objects, a fixed dt above the CFL bound, fewer than
-/// two particles per cell per axis, a huge particle count. One line each.
+/// Legal but likely wrong: overlapping objects, an object starting inside a wall, a fixed dt
+/// above the CFL bound, fewer than two particles per cell per axis, a huge particle count. One
+/// line each.
 std::vector<std::string> scene_warnings(Simulation& sim);
 
 /// A few lines: objects and particle counts, grid, time step, stages.

@@ -82,9 +82,27 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     if (const std::string why = closedness_problem(mesh); !why.empty())
       throw SceneError(od.mesh_loc, key + ".mesh", "'" + od.mesh.string() + "': " + why);
     transform_mesh(mesh, od.scale, od.rotation_deg, od.offset);
+    Eigen::AlignedBox<Real, 3> box;
+    for (const Vec3& v : mesh.vertices) box.extend(v);
+    // Where the object and the interior lie, for errors about one outside the other.
+    const auto corners = [](const Vec3& a, const Vec3& b) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "[%g, %g, %g] to [%g, %g, %g]", a.x(), a.y(), a.z(), b.x(),
+                    b.y(), b.z());
+      return std::string(buf);
+    };
+    const auto outside = [&](const std::string& how) {
+      return SceneError(od.placement_loc, key + ".offset",
+                        "object '" + od.name + "' lies " + how +
+                            " the grid interior (the grid minus its buffer of " +
+                            std::to_string(scene.grid.buffer) + " cells): the object spans " +
+                            corners(box.min(), box.max()) + ", the interior " +
+                            corners(interior_lo, interior_hi));
+    };
+    if ((box.min().array() > interior_hi.array()).any() ||
+        (box.max().array() < interior_lo.array()).any())
+      throw outside("outside");
     {  // Refuse before sampling an object whose particles could never fit in memory.
-      Eigen::AlignedBox<Real, 3> box;
-      for (const Vec3& v : mesh.vertices) box.extend(v);
       const Vec3 cells = box.sizes().cwiseQuotient(h) + Vec3::Ones();
       check_memory(cells.prod() * od.particles_per_cell * 400.0, od.loc, key,
                    "object '" + od.name + "' at " + std::to_string(od.particles_per_cell) +
@@ -93,13 +111,13 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     const std::vector<Vec3> points =
         sample_inside(mesh, scene.grid, od.particles_per_cell,
                       od.sampling == Sampling::regular, scene.simulation.seed, o);
-    if (points.empty())
-      throw SceneError(od.loc, key, "object '" + od.name + "' samples zero particles");
     for (const Vec3& x : points)
       if ((x.array() < interior_lo.array()).any() || (x.array() > interior_hi.array()).any())
-        throw SceneError(od.loc, key + ".offset",
-                         "object '" + od.name +
-                             "' lies partly outside the grid interior (grid minus buffer)");
+        throw outside("partly outside");
+    if (points.empty())
+      throw SceneError(od.loc, key, "object '" + od.name + "' samples zero particles: it spans " +
+                                        corners(box.min(), box.max()) +
+                                        ", less than the particle spacing");
 
     const std::size_t n = points.size();
     const Real v0 = cell_volume / od.particles_per_cell;

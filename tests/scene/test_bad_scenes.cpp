@@ -67,6 +67,10 @@ TEST_CASE("malformed scenes exit with code 2 and say where and what", "[scene]")
       {"yaml syntax", "dims: 20", "dims: [20, 20", {"YAML syntax error", "bad.yaml:"}},
       {"tab indentation", "  frames: 2", "\tframes: 2", {"YAML syntax error"}},
       {"unknown key typo", "  frames: 2", "  frams: 2", {"bad.yaml:2:3", "did you mean 'frames'"}},
+      {"truncated key", "  frames: 2", "  frame: 2", {"bad.yaml:2:3", "did you mean 'frames'"}},
+      {"required material key under another name", "    E: 1.0e4", "    youngs_modulus: 1.0e4", {"bad.yaml:14:5", "objects[0].youngs_modulus", "did you mean 'E'", "missing required key 'E'"}},
+      {"key without its colon, joined to the value above", "  dt: 1.0e-3", "  dt: 1.0e-3\n    cfl 0.5", {"bad.yaml:4:5", "simulation.dt", "colon seems to be missing after 'cfl'", "'cfl: 0.5'"}},
+      {"key without its colon, before the next key", "  frames: 2", "  frames: 2\n  cfl 0.5", {"YAML syntax error", "line 3 ('cfl 0.5') seems to be missing a colon"}},
       {"unknown object key", "    E: 1.0e4", "    E: 1.0e4\n    youngs_modulus: 3", {"objects[0].youngs_modulus", "unknown key"}},
       {"unknown top-level section", "", "output_dir: x\n", {"unknown key 'output_dir'", "did you mean 'output'"}},
       {"wrong type: number", "  dt: 1.0e-3", "  dt: fast", {"simulation.dt", "expected a number, found 'fast'"}},
@@ -106,7 +110,8 @@ TEST_CASE("malformed scenes exit with code 2 and say where and what", "[scene]")
       {"open mesh", "mesh: MESH", "mesh: OPEN", {"objects[0].mesh", "not closed"}},
       {"unparsable mesh", "mesh: MESH", "mesh: GARBAGE", {"objects[0].mesh", "garbage.obj", "no triangles"}},
       {"empty mesh", "mesh: MESH", "mesh: EMPTY", {"objects[0].mesh"}},
-      {"object outside the grid", "offset: [0.5, 0.5, 0.5]", "offset: [0.95, 0.5, 0.5]", {"objects[0]", "outside the grid interior"}},
+      {"object outside the grid", "offset: [0.5, 0.5, 0.5]", "offset: [0.95, 0.5, 0.5]", {"objects[0]", "partly outside the grid interior", "spans [0.85, 0.4, 0.4] to [1.05, 0.6, 0.6]", "the interior [0.15, 0.15, 0.15] to [0.85, 0.85, 0.85]"}},
+      {"object entirely outside the grid", "offset: [0.5, 0.5, 0.5]", "offset: [3, 0.5, 0.5]", {"bad.yaml:8:5", "objects[0].offset", "object 'a' lies outside the grid interior", "spans [2.9, 0.4, 0.4] to [3.1, 0.6, 0.6]", "the interior [0.15"}},
       {"object in the buffer", "offset: [0.5, 0.5, 0.5]", "offset: [0.5, 0.14, 0.5]", {"outside the grid interior"}},
       {"object that samples nothing", "scale: 0.2", "scale: 0.001", {"samples zero particles"}},
       {"duplicate object names", "walls:", "  - {name: a, mesh: MESH, scale: 0.1, offset: [0.3, 0.3, 0.3], mass: 1, material: corotated, E: 1.0e4, nu: 0.3}\nwalls:", {"objects[1].name", "used twice"}},
@@ -147,6 +152,7 @@ TEST_CASE("bad command lines and overrides exit with code 2", "[scene]") {
     std::string args;
     std::vector<std::string> words;
   };
+  std::ofstream(dir / "old.summary.yaml") << "frames: []\n";  // a golden already there
   const std::vector<Cli> cases = {
       {"", {"no command"}},
       {"fly " + scene, {"unknown command 'fly'"}},
@@ -158,6 +164,14 @@ TEST_CASE("bad command lines and overrides exit with code 2", "[scene]") {
       {"validate " + scene + " --set objects[0].nu=0.7", {"(--set)", "objects[0].nu", "out of range"}},
       {"validate " + scene + " --set objects[3].E=1", {"has no entry [3]"}},
       {"validate " + scene + " --set simulation.frams=3", {"did you mean 'frames'"}},
+      {"validate " + scene + " --set object[1].nu=0.2", {"there is no list 'object'", "did you mean 'objects'"}},
+      {"validate " + scene + " --set objects[0].offset=[3,3,3]", {"(--set)", "objects[0].offset", "outside the grid interior"}},
+      {"validate " + scene + " --frames 3", {"'mpm validate' does not take --frames"}},
+      {"validate " + scene + " --out " + (dir / "x").string(), {"'mpm validate' does not take --out"}},
+      {"materials " + scene + " --set objects[0].E=1", {"'mpm materials' does not take --set"}},
+      {"golden " + scene + " --frames 1 -o " + (dir / "old.summary.yaml").string(), {"old.summary.yaml' exists", "--force"}},
+      {"golden " + scene + " --frames 1 --format png -o " + (dir / "g.yaml").string(), {"'mpm golden' does not take --format"}},
+      {"compare " + scene + " " + scene + " --set a=1", {"'mpm compare' does not take --set"}},
       {"validate /nonexistent/scene.yaml", {"/nonexistent/scene.yaml", "no such file"}},
       {"run " + scene + " --out /proc/forbidden", {"--out", "cannot create output folder"}},
       {"study --quick", {"'mpm study' needs -o DIR"}},
