@@ -33,6 +33,8 @@ else()
   set(frames_hint "")
 endif()
 set(golden_cmd "mpm golden ${SCENE}${frames_hint} -o ${GOLDEN}")
+# mpm golden refuses to replace a golden without --force.
+set(regolden_cmd "${golden_cmd} --force")
 
 if(NOT EXISTS "${GOLDEN}")
   fail("no golden summary ${GOLDEN}: make one with: ${golden_cmd}\n"
@@ -67,11 +69,11 @@ if(compare_rc STREQUAL "0")
 elseif(compare_rc STREQUAL "1")
   fail("the run differs from the golden summary beyond tolerance (table above).\n"
        "If the change is intended, check it (docs/regression-testing.md, \"Before accepting "
-       "a changed golden\") and then regenerate the golden with: ${golden_cmd}")
+       "a changed golden\") and then regenerate the golden with: ${regolden_cmd}")
 elseif(compare_rc STREQUAL "2")
   fail("the run cannot be compared with ${GOLDEN} (message above): the frame count, object "
        "names or particle counts differ, or a file is unreadable. If the scene was changed on "
-       "purpose, regenerate the golden with: ${golden_cmd}")
+       "purpose, regenerate the golden with: ${regolden_cmd}")
 else()
   fail("mpm compare failed (exit '${compare_rc}'): ${compare_text}")
 endif()

@@ -6,5 +6,5 @@ cd "$(dirname "$0")/.."
 mkdir -p tests/golden
 for scene in scenes/*.yaml; do
   name=$(basename "$scene" .yaml)
-  build/bin/mpm golden "$scene" --frames 1 -o "tests/golden/$name.summary.yaml" --quiet
+  build/bin/mpm golden "$scene" --frames 1 -o "tests/golden/$name.summary.yaml" --force --quiet
 done

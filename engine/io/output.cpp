@@ -376,6 +376,11 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
     y << YAML::Key << "suggested_dt" << YAML::Value << u.suggested_dt;
     y << YAML::EndMap;
   }
+  if (!r.warnings.empty()) {
+    y << YAML::Key << "warnings" << YAML::Value << YAML::BeginSeq;
+    for (const std::string& w : r.warnings) y << w;
+    y << YAML::EndSeq;
+  }
   y << YAML::Key << "scene" << YAML::Value << sim.scene().file.string();
   y << YAML::Key << "particles" << YAML::Value << n;
   y << YAML::Key << "frames" << YAML::Value << r.frames_done;

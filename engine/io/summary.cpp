@@ -541,6 +541,40 @@ std::string mismatch(const RunSummary& a, const RunSummary& b) {
 
 }  // namespace
 
+FrameSelection select_frames(const RunSummary& a, const RunSummary& b,
+                             std::optional<int> last_frame) {
+  FrameSelection sel{a, b, "", ""};
+  const auto span = [](const RunSummary& s) {
+    return s.frames.empty() ? std::string("no frames")
+                            : std::to_string(s.frames.front().frame) + ".." +
+                                  std::to_string(s.frames.back().frame);
+  };
+  const auto keep_to = [](RunSummary& s, int last) {
+    while (!s.frames.empty() && s.frames.back().frame > last) s.frames.pop_back();
+  };
+  if (last_frame) {
+    for (const auto& [s, which] : {std::pair{&a, "the first summary"}, {&b, "the reference"}})
+      if (s->frames.empty() || s->frames.back().frame < *last_frame) {
+        sel.error = "--frames " + std::to_string(*last_frame) + ": " + which + " has frames " +
+                    span(*s) + ", not frame " + std::to_string(*last_frame);
+        return sel;
+      }
+    keep_to(sel.a, *last_frame);
+    keep_to(sel.b, *last_frame);
+    if (sel.a.frames.size() < a.frames.size() || sel.b.frames.size() < b.frames.size())
+      sel.note = "compared frames " + span(sel.b) + " (--frames " + std::to_string(*last_frame) +
+                 "); the run has frames " + span(a) + ", the reference " + span(b);
+    return sel;
+  }
+  if (!b.frames.empty() && a.frames.size() > b.frames.size()) {
+    sel.a.frames.resize(b.frames.size());
+    sel.note = "compared frames " + span(b) + ", all of the reference's; the run goes on to frame " +
+               std::to_string(a.frames.back().frame) + ": its frames after " +
+               std::to_string(b.frames.back().frame) + " are not compared";
+  }
+  return sel;
+}
+
 CompareResult compare_summaries(const RunSummary& a, const RunSummary& b, const Tolerances& tol) {
   CompareResult result;
   result.error = mismatch(a, b);

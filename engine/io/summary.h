@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -148,6 +149,21 @@ struct CompareResult {
   int frames = 0;                   ///< Frames compared.
   int objects = 0;                  ///< Objects per frame compared.
 };
+
+/// The frames `mpm compare` compares, picked from two whole summaries.
+struct FrameSelection {
+  RunSummary a;       ///< The frames of the first summary to compare.
+  RunSummary b;       ///< The frames of the reference to compare.
+  std::string note;   ///< A line saying which frames were compared and which left out; "" if all.
+  std::string error;  ///< Why the frames asked for cannot be compared; "" if they can.
+};
+
+/// With `last_frame`, the frames up to number last_frame of both (both must reach it). Without,
+/// every frame of the reference `b` and as many first frames of `a`: a run may go on past its
+/// golden (its first frames are checked) but not stop short of it (compare_summaries then
+/// reports the different frame counts).
+FrameSelection select_frames(const RunSummary& a, const RunSummary& b,
+                             std::optional<int> last_frame = std::nullopt);
 
 /// Compares `a` with the reference `b`. Summaries that do not describe the same run (frame
 /// count, frame numbers or times, object names or particle counts differ) give `error`.

@@ -49,11 +49,13 @@ Usage:
                                  run the validation cases over sweeps of h, particles per
                                  cell, CFL, dt, transfer and kernel; write DIR/study.csv and
                                  DIR/series.csv (docs/accuracy.md)
-  mpm golden SCENE.yaml --frames N -o FILE
-                                 run N frames and write the run summary to FILE (a golden)
-  mpm compare A B [--tol QUANTITY=VALUE ...]
+  mpm golden SCENE.yaml --frames N -o FILE [--force]
+                                 run N frames and write the run summary to FILE (a golden;
+                                 --force replaces an existing FILE)
+  mpm compare A B [--tol QUANTITY=VALUE ...] [--frames N]
                                  compare two runs (output folders or summary files), B being
-                                 the reference; exit 0 within tolerance, 1 not, 2 bad input
+                                 the reference, over B's frames (or frames 0..N); exit 0
+                                 within tolerance, 1 not, 2 bad input
   mpm --help | --version
 
 Options of run:
@@ -83,9 +85,9 @@ Ctrl-C or SIGTERM stops a run after the current substep.
 struct Args {
   std::string command, scene, second, out, resume, formats, output_file, log_level = "info";
   std::vector<std::string> tols;
+  std::vector<std::string> given;  ///< The options given, in order (to refuse ignored ones).
   std::string cases, csv;
   std::optional<long> particles;
-  std::vector<std::string> given;  ///< The options given, in order (to refuse ignored ones).
   std::optional<int> frames, threads, fps;
   std::vector<std::string> sets, plugins;
   bool quiet = false, force = false, quick = false, allow_scene_plugins = false;
@@ -123,9 +125,9 @@ Args parse_args(int argc, char** argv) {
       if (i + 1 >= words.size()) usage_error(w + " needs a value");
       return words[++i];
     };
+    if (w.size() > 1 && w[0] == '-') a.given.push_back(w);
     if (w == "--help" || w == "-h") {
       std::fputs(kUsage, stdout);
-    if (w.size() > 1 && w[0] == '-') a.given.push_back(w);
       std::exit(mpm::kExitOk);
     } else if (w == "--version") {
       std::printf("mpm %s (commit %s)\n", MPM_VERSION, mpm::git_commit());
@@ -182,8 +184,6 @@ Args parse_args(int argc, char** argv) {
   return a;
 }
 
-int list_materials(const mpm::MaterialRegistry& registry) {
-  for (const mpm::MaterialInfo& m : registry.all()) {
 /// The commands each option applies to; an option given to another command is refused rather
 /// than ignored. Options not listed (--quiet, --log-level) apply to every command.
 void check_options(const Args& a) {
@@ -220,6 +220,8 @@ void check_options(const Args& a) {
     }
 }
 
+int list_materials(const mpm::MaterialRegistry& registry) {
+  for (const mpm::MaterialInfo& m : registry.all()) {
     std::printf("%s: %s\n  reference: %s\n", m.name.c_str(), m.description.c_str(),
                 m.reference.c_str());
     std::printf("  %-22s %-8s %-10s %-16s %s\n", "key", "unit", "default", "range", "meaning");
@@ -296,8 +298,6 @@ int cmd_bench(const Args& args) {
   if (args.particles) opt.particles = *args.particles;
   if (!args.cases.empty()) opt.cases = split_list(args.cases);
   try {
-    const auto results = mpm::run_benchmarks(opt);
-    std::printf("%s", mpm::format_bench_table(results).c_str());
     // `machine`: the peak FLOP rate and memory bandwidth, for the roofline.
     if (const auto m = std::find(opt.cases.begin(), opt.cases.end(), "machine");
         m != opt.cases.end()) {
@@ -305,6 +305,8 @@ int cmd_bench(const Args& args) {
       std::printf("%s", mpm::format_machine_peaks(mpm::measure_machine_peaks(opt.threads)).c_str());
       if (opt.cases.empty()) return mpm::kExitOk;
     }
+    const auto results = mpm::run_benchmarks(opt);
+    std::printf("%s", mpm::format_bench_table(results).c_str());
     if (!args.csv.empty()) {
       std::ofstream csv(args.csv);
       csv << mpm::format_bench_csv(results);
@@ -322,14 +324,21 @@ int cmd_bench(const Args& args) {
 int cmd_compare(const Args& args) {
   if (args.scene.empty() || args.second.empty()) usage_error("'mpm compare' needs A and B");
   try {
-    const mpm::RunSummary a = mpm::read_summary(args.scene), b = mpm::read_summary(args.second);
+    const mpm::FrameSelection sel = mpm::select_frames(
+        mpm::read_summary(args.scene), mpm::read_summary(args.second), args.frames);
+    if (!sel.error.empty()) {
+      std::fprintf(stderr, "error: %s\n", sel.error.c_str());
+      return mpm::kExitBadInput;
+    }
+    // Tolerances from the reference frames compared, as if the golden were made that long.
     const mpm::Tolerances tol =
-        mpm::parse_tolerance_overrides(mpm::default_tolerances(b), args.tols);
-    const mpm::CompareResult r = mpm::compare_summaries(a, b, tol);
+        mpm::parse_tolerance_overrides(mpm::default_tolerances(sel.b), args.tols);
+    const mpm::CompareResult r = mpm::compare_summaries(sel.a, sel.b, tol);
     if (!r.error.empty()) {
       std::fprintf(stderr, "error: %s\n", r.error.c_str());
       return mpm::kExitBadInput;
     }
+    if (!sel.note.empty()) std::printf("%s\n", sel.note.c_str());
     std::printf("%s", mpm::format_comparison(r).c_str());
     return r.ok ? mpm::kExitOk : mpm::kExitRunFailed;
   } catch (const std::exception& e) {
@@ -357,6 +366,7 @@ int cmd_run(const Args& args) {
     for (const std::string& s : args.sets) options.overrides.push_back(mpm::parse_override(s));
     options.plugins = plugin_policy(args);
     scene = mpm::load_scene(args.scene, registry, options);
+    if (args.frames) scene.simulation.frames = *args.frames;  // the header says what will run
     if (!args.formats.empty()) {
       scene.output.formats.clear();
       std::stringstream list(args.formats);
@@ -366,7 +376,6 @@ int cmd_run(const Args& args) {
                                                             "'; expected hdf5, bgeo, ply or png");
         scene.output.formats.push_back(*f);
       }
-    if (args.frames) scene.simulation.frames = *args.frames;  // the header says what will run
     }
     sim = mpm::Simulation::create(scene, registry);
     out = !args.resume.empty() ? std::filesystem::path(args.resume)
@@ -381,6 +390,9 @@ int cmd_run(const Args& args) {
     } else if (args.command == "golden") {
       out = std::filesystem::path(args.output_file).parent_path();
       if (out.empty()) out = ".";
+      if (std::filesystem::exists(args.output_file) && !args.force)
+        throw mpm::SceneError({"-o"}, "", "'" + args.output_file +
+                                              "' exists; give --force to replace this golden");
     } else if (args.command == "run") {
       try {
         mpm::prepare_output_directory(out, args.force);
@@ -390,9 +402,6 @@ int cmd_run(const Args& args) {
       }
     }
   } catch (const mpm::SceneError& e) {
-      if (std::filesystem::exists(args.output_file) && !args.force)
-        throw mpm::SceneError({"-o"}, "", "'" + args.output_file +
-                                              "' exists; give --force to replace this golden");
     std::fprintf(stderr, "error: %s\n", e.what());
     return mpm::kExitBadInput;
   }
@@ -404,9 +413,11 @@ int cmd_run(const Args& args) {
   }
 
   const int frames = args.frames.value_or(scene.simulation.frames);
+  // A golden writes only its summary file; a run writes its folder.
+  const std::string written = args.command == "golden" ? "golden summary in " + args.output_file
+                                                       : "output in " + out.string();
   if (!args.quiet) std::printf("%s", mpm::scene_summary(*sim).c_str());
-  spdlog::info("{} particles, {} frames, output in {}", sim->particles().size(), frames,
-               out.string());
+  spdlog::info("{} particles, {} frames, {}", sim->particles().size(), frames, written);
   if (resumed_frame > 0) spdlog::info("resuming from frame {}", resumed_frame);
 
   std::signal(SIGINT, on_signal);
@@ -425,10 +436,13 @@ int cmd_run(const Args& args) {
 
   const double steps = static_cast<double>(sim->particles().size()) * sim->substeps();
   std::printf("%s: %s, %zu particles, %d frames, %zu substeps in %.1f s (%.2fM particle-steps/s)"
-              "; output in %s\n",
+              "; %s%s\n",
               args.scene.c_str(), r.status.c_str(), sim->particles().size(), r.frames_done,
               sim->substeps(), r.wall_seconds,
-              r.loop_seconds > 0 ? steps / r.loop_seconds / 1e6 : 0.0, out.string().c_str());
+              r.loop_seconds > 0 ? steps / r.loop_seconds / 1e6 : 0.0, written.c_str(),
+              r.warnings.empty() ? ""
+              : args.command == "run" ? " (with warnings: see the log and report.yaml)"
+                                      : " (with warnings: see the log)");
   if (r.status != "ok") {
     std::fprintf(stderr, "error: %s\n", r.message.c_str());
     return mpm::kExitRunFailed;
@@ -447,6 +461,7 @@ int run_cli(int argc, char** argv) {
     usage_error("unknown log level '" + args.log_level + "'");
   spdlog::set_level(args.quiet ? spdlog::level::warn : level);
   if (args.threads) omp_set_num_threads(*args.threads);
+  check_options(args);
 
   if (args.command == "materials") return cmd_materials(args);
   if (args.command == "preview") return cmd_preview(args);
@@ -457,4 +472,3 @@ int run_cli(int argc, char** argv) {
 }
 
 }  // namespace mpm
-  check_options(args);

@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <limits>
 
+#include <spdlog/spdlog.h>
+
 namespace mpm {
 
 namespace {
@@ -32,6 +34,38 @@ std::optional<Instability> diagnose(const Simulation& sim, Real dt) {
   return std::nullopt;
 }
 
+/// Appends a warning for each object not yet warned about that has a particle with
+/// J = det F <= 0 (inverted: no elastic material survives it) at the end of `frame`. Once per
+/// frame, one determinant per particle: cheap beside the frame's substeps.
+void check_inversion(const Simulation& sim, int frame, std::vector<char>& warned,
+                     std::vector<std::string>& warnings) {
+  const Particles& p = sim.particles();
+  const std::size_t objects = sim.objects().size();
+  std::vector<std::size_t> count(objects, 0);
+  std::vector<Real> smallest(objects, std::numeric_limits<Real>::infinity());
+  for (std::size_t q = 0; q < p.size(); ++q) {
+    const std::uint32_t o = p.object[q];
+    if (warned[o]) continue;
+    const Real J = to_real(p.F[q]).determinant();
+    if (!(J <= 0)) continue;
+    ++count[o];
+    smallest[o] = std::min(smallest[o], J);
+  }
+  for (std::size_t o = 0; o < objects; ++o) {
+    if (count[o] == 0) continue;
+    warned[o] = 1;
+    char buf[400];
+    std::snprintf(buf, sizeof buf,
+                  "object '%s': %zu of %zu particles inverted (J = det F <= 0, smallest %.3g) "
+                  "by frame %d: the body was crushed beyond what its material can hold, and "
+                  "what follows is not physical (E is in Pa: too small? dt too large?)",
+                  sim.objects()[o].name.c_str(), count[o], sim.objects()[o].count, frame,
+                  static_cast<double>(smallest[o]));
+    warnings.emplace_back(buf);
+    spdlog::warn("{}", warnings.back());
+  }
+}
+
 }  // namespace
 
 RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
@@ -47,6 +81,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
   // state seen at a frame end.
   const Real cfl = 0.5;
   Real suggested_dt = sim.cfl_bound(cfl);
+  std::vector<char> inversion_warned(sim.objects().size(), 0);
   auto fail = [&](Instability why, int frame) {
     why.frame = frame;
     why.substep = sim.substeps();
@@ -123,6 +158,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
         fail({buf, ""}, f);
         break;
       }
+      check_inversion(sim, f, inversion_warned, result.warnings);
       suggested_dt = sim.cfl_bound(cfl);
       sim.set_time(frame_end);
       result.frames_done = f;

@@ -40,6 +40,8 @@ struct RunResult {
   double loop_seconds = 0;    ///< The substep loop: each substep and its dt bound.
   Real dt_min = 0;            ///< Smallest substep taken, s.
   Real dt_max = 0;            ///< Largest substep taken, s.
+  /// What went wrong without stopping the run (inverted particles), one line each.
+  std::vector<std::string> warnings;
 };
 
 /// Watches a run between steps: output, progress, checks. Must not change the state.

@@ -9,6 +9,10 @@
 #include <limits>
 #include <map>
 #include <sstream>
+#include <sys/wait.h>
+#include <tuple>
+
+#include <yaml-cpp/yaml.h>
 
 #include "engine/run/run.h"
 #include "engine/io/summary.h"
@@ -619,4 +623,149 @@ TEST_CASE("frames compared particle by particle", "[summary]") {
   FrameData other_object = a;
   other_object.object_id[4] = 1;
   CHECK_THAT(compare_frames(a, other_object).error, Catch::Contains("particle 4"));
+}
+
+TEST_CASE("a longer run is compared over the golden's frames, and says so", "[summary]") {
+  Run run = run_two_cubes("summary_longer", 6);
+  RunSummary golden = run.summary;
+  golden.frames.resize(4);  // frames 0..3: a golden made with --frames 3
+
+  // The run goes on past the golden: its first four frames are compared, and a line says so.
+  const FrameSelection sel = select_frames(run.summary, golden);
+  CHECK(sel.error.empty());
+  REQUIRE(sel.a.frames.size() == 4);
+  CHECK(sel.b.frames.size() == 4);
+  CHECK_THAT(sel.note, Catch::Contains("compared frames 0..3") &&
+                           Catch::Contains("the run goes on to frame 6"));
+  const CompareResult r = compare_summaries(sel.a, sel.b, default_tolerances(sel.b));
+  INFO(format_comparison(r));
+  CHECK(r.ok);
+  CHECK(r.frames == 4);
+
+  // A change in the compared frames fails; one after the golden's last frame cannot be seen.
+  RunSummary early = run.summary, late = run.summary;
+  early.frames[3].objects[0].centroid.x() += 0.1;
+  late.frames[5].objects[0].centroid.x() += 0.1;
+  const FrameSelection se = select_frames(early, golden), sl = select_frames(late, golden);
+  CHECK_FALSE(compare_summaries(se.a, se.b, default_tolerances(se.b)).ok);
+  CHECK(compare_summaries(sl.a, sl.b, default_tolerances(sl.b)).ok);
+
+  // A run shorter than its golden still cannot pass.
+  RunSummary shorter = run.summary;
+  shorter.frames.resize(3);
+  const FrameSelection ss = select_frames(shorter, golden);
+  CHECK(ss.note.empty());
+  CHECK_THAT(compare_summaries(ss.a, ss.b, default_tolerances(ss.b)).error,
+             Catch::Contains("different frame counts"));
+
+  // Same length: nothing to say.
+  CHECK(select_frames(run.summary, run.summary).note.empty());
+
+  // --frames N: frames 0..N of both, which both must have.
+  const FrameSelection two = select_frames(run.summary, golden, 2);
+  CHECK(two.error.empty());
+  CHECK(two.a.frames.size() == 3);
+  CHECK(two.b.frames.size() == 3);
+  CHECK_THAT(two.note, Catch::Contains("compared frames 0..2 (--frames 2)"));
+  CHECK_THAT(select_frames(run.summary, golden, 5).error,
+             Catch::Contains("--frames 5: the reference has frames 0..3, not frame 5"));
+  CHECK_THAT(select_frames(shorter, run.summary, 4).error,
+             Catch::Contains("--frames 4: the first summary has frames 0..2"));
+}
+
+namespace {
+
+/// Runs `mpm ARGS` with stdout and stderr in one file; returns the exit code and the text.
+std::pair<int, std::string> mpm_output(const std::string& args, const std::filesystem::path& dir) {
+  const auto out = dir / "mpm_output.txt";
+  const int status =
+      std::system((std::string(MPM_BINARY) + " " + args + " > " + out.string() + " 2>&1").c_str());
+  std::ifstream in(out);
+  std::stringstream text;
+  text << in.rdbuf();
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, text.str()};
+}
+
+}  // namespace
+
+TEST_CASE("mpm golden keeps an existing golden unless --force, and names the file it writes",
+          "[summary]") {
+  const auto dir = test::temp_dir("summary_golden_cli");
+  std::ofstream(dir / "scene.yaml") << two_cubes(3);
+  const std::string scene = (dir / "scene.yaml").string(), golden = (dir / "g.yaml").string();
+
+  auto [code, text] = mpm_output("golden " + scene + " --frames 1 -o " + golden, dir);
+  INFO(text);
+  CHECK(code == 0);
+  CHECK_THAT(text, Catch::Contains("golden summary in " + golden));
+  CHECK_THAT(text, !Catch::Contains("output in"));
+  const RunSummary first = read_summary(golden);
+  CHECK(first.frames.size() == 2);
+
+  // Again without --force: refused, the golden unchanged.
+  std::tie(code, text) = mpm_output("golden " + scene + " --frames 2 -o " + golden, dir);
+  CHECK(code == 2);
+  CHECK_THAT(text, Catch::Contains("exists; give --force"));
+  CHECK(read_summary(golden).frames.size() == 2);
+  std::tie(code, text) = mpm_output("golden " + scene + " --frames 2 -o " + golden + " --force", dir);
+  CHECK(code == 0);
+  CHECK(read_summary(golden).frames.size() == 3);
+
+  // A 3-frame run against the 2-frame golden: compared over frames 0..2, with a line saying so.
+  std::tie(code, text) =
+      mpm_output("run " + scene + " --out " + (dir / "run").string() + " --quiet", dir);
+  REQUIRE(code == 0);
+  std::tie(code, text) = mpm_output("compare " + (dir / "run").string() + " " + golden, dir);
+  CHECK(code == 0);
+  CHECK_THAT(text, Catch::Contains("compared frames 0..2, all of the reference's; the run goes on "
+                                   "to frame 3"));
+  CHECK_THAT(text, Catch::Contains("PASS: every quantity within tolerance (3 frames, 2 objects)"));
+  // The other way round (a run shorter than its golden) cannot be compared.
+  std::tie(code, text) = mpm_output("compare " + golden + " " + (dir / "run").string(), dir);
+  CHECK(code == 2);
+  std::tie(code, text) =
+      mpm_output("compare " + (dir / "run").string() + " " + golden + " --frames 1", dir);
+  CHECK(code == 0);
+  CHECK_THAT(text, Catch::Contains("compared frames 0..1 (--frames 1)"));
+  CHECK_THAT(text, Catch::Contains("(2 frames, 2 objects)"));
+}
+
+TEST_CASE("a run whose particles invert ends ok but warns, naming the object", "[summary]") {
+  // A 0.3 m cube of E = 10 Pa (meant as kPa?) dropped on a floor flattens through itself.
+  const auto scene_with = [](const std::string& E) {
+    return "simulation:\n  frames: 20\n  frame_dt: 0.04\n  dt: 1.0e-3\n"
+           "grid:\n  max: [1, 1, 1]\n  dims: 20\n"
+           "objects:\n  - name: soft\n    mesh: " + test::cube_mesh() + "\n    scale: 0.3\n"
+           "    offset: [0.5, 0.7, 0.5]\n    density: 1000\n    material: corotated\n"
+           "    E: " + E + "\n    nu: 0.3\n"
+           "walls:\n  - plane: {point: [0, 0.15, 0], normal: [0, 1, 0]}\n"
+           "    boundary: separate\n";
+  };
+  for (const std::string E : {"10", "1.0e5"}) {
+    INFO("E = " << E);
+    const auto dir = test::temp_dir("summary_inverted");
+    const SceneDesc scene = test::scene_from(scene_with(E));
+    std::unique_ptr<Simulation> sim = Simulation::create(scene, builtin_registry());
+    FrameOutput output(dir, scene.output);
+    const RunResult r = run_frames(*sim, scene.simulation.frames, scene.simulation.frame_dt,
+                                   {&output});
+    CHECK(r.status == "ok");
+    // Whether any particle ends inverted, seen from the particles themselves.
+    bool inverted = false;
+    const Particles& p = sim->particles();
+    for (std::size_t q = 0; q < p.size(); ++q) inverted |= to_real(p.F[q]).determinant() <= 0;
+    const YAML::Node report = YAML::LoadFile((dir / "report.yaml").string());
+    if (E == "10") {
+      CHECK(inverted);
+      REQUIRE(r.warnings.size() == 1);
+      CHECK_THAT(r.warnings[0], Catch::Contains("object 'soft'") &&
+                                    Catch::Contains("particles inverted (J = det F <= 0"));
+      REQUIRE(report["warnings"].IsSequence());
+      CHECK(report["warnings"][0].as<std::string>() == r.warnings[0]);
+    } else {
+      CHECK_FALSE(inverted);
+      CHECK(r.warnings.empty());
+      CHECK_FALSE(report["warnings"].IsDefined());
+    }
+  }
 }
