@@ -699,6 +699,8 @@ TEST_CASE("mpm golden keeps an existing golden unless --force, and names the fil
   CHECK(code == 0);
   CHECK_THAT(text, Catch::Contains("golden summary in " + golden));
   CHECK_THAT(text, !Catch::Contains("output in"));
+  // The header gives the frames that will run (--frames), not the scene's 3.
+  CHECK_THAT(text, Catch::Contains("frames: 1 of 0.02 s"));
   const RunSummary first = read_summary(golden);
   CHECK(first.frames.size() == 2);
 
