@@ -211,6 +211,11 @@ void write_xdmf(const std::filesystem::path& xmf_file, const std::vector<XdmfFra
       throw std::invalid_argument("XDMF frame '" + f.h5_file_name + "' has a non-finite time");
   }
 
+  if (xmf_file.filename().string().find(':') != std::string::npos)
+    throw std::invalid_argument("XDMF file name '" + xmf_file.filename().string() +
+                                "' contains ':', which would separate the connectivity file "
+                                "from its dataset");
+
   std::size_t largest = 0;
   for (const XdmfFrame& f : frames) largest = std::max(largest, f.particles);
   const std::filesystem::path connectivity = xdmf_connectivity_path(xmf_file);

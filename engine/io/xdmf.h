@@ -30,8 +30,8 @@ std::filesystem::path xdmf_connectivity_path(const std::filesystem::path& xmf_fi
 /// them, then any others by name), read from the last frame's file; if that file cannot be
 /// read, velocity (float32, N x 3), object_id (int32) and J (float32). Writes both files to
 /// `*.tmp` and renames them, so each is whole or absent. Throws std::invalid_argument for an
-/// empty file name, one containing ':', or a non-finite time, and std::runtime_error if a
-/// file cannot be written.
+/// empty frame file name, a frame file or `xmf_file` name containing ':', or a non-finite
+/// time, and std::runtime_error if a file cannot be written.
 void write_xdmf(const std::filesystem::path& xmf_file, const std::vector<XdmfFrame>& frames);
 
 }  // namespace mpm

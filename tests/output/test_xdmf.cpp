@@ -175,6 +175,11 @@ TEST_CASE("XDMF: one connectivity file for all frames, and every per-particle da
     write_xdmf(xmf, frames);
     CHECK(read_connectivity(conn) == want);
   }
+  SECTION("an XDMF name with ':' is refused before anything is written") {
+    CHECK_THROWS_AS(write_xdmf(dir / "a:b.xmf", frames), std::invalid_argument);
+    CHECK_FALSE(std::filesystem::exists(dir / "a:b_connectivity.h5"));
+    CHECK_FALSE(std::filesystem::exists(dir / "a:b.xmf"));
+  }
   SECTION("without a readable frame file, the attributes a run writes") {
     write_xdmf(dir / "other.xmf", {{"missing.h5", 0, 10}});
     const std::string other = slurp(dir / "other.xmf");
