@@ -106,17 +106,21 @@ bool is_identifier(const std::string& w) {
   });
 }
 
+/// Checks the plain scalars under `n`. Aliases can make a document cyclic (`&a [*a]`) or
+/// exponentially large, so the walk stops at 64 levels or after `budget` nodes: a scene is
+/// far smaller, and the loader's own checks see the rest.
 void check_scalars(const YAML::Node& n, const std::vector<std::string>& lines,
-                   const std::string& file, const std::string& path) {
+                   const std::string& file, const std::string& path, int& budget, int depth = 0) {
+  if (--budget < 0 || depth > 64) return;
   if (n.IsMap()) {
     for (auto it = n.begin(); it != n.end(); ++it)
       check_scalars(it->second, lines, file,
-                    (path.empty() ? "" : path + ".") + it->first.Scalar());
+                    (path.empty() ? "" : path + ".") + it->first.Scalar(), budget, depth + 1);
     return;
   }
   if (n.IsSequence()) {
     for (std::size_t i = 0; i < n.size(); ++i)
-      check_scalars(n[i], lines, file, path + "[" + std::to_string(i) + "]");
+      check_scalars(n[i], lines, file, path + "[" + std::to_string(i) + "]", budget, depth + 1);
     return;
   }
   // Only plain (unquoted) scalars with a position are joined from several lines.
@@ -190,7 +194,8 @@ void check_missing_colons(const YAML::Node& root, const std::string& text,
   std::vector<std::string> lines;
   std::istringstream in(text);
   for (std::string l; std::getline(in, l);) lines.push_back(l);
-  check_scalars(root, lines, file, "");
+  int budget = 100000;
+  check_scalars(root, lines, file, "", budget);
 }
 
 ParamReader::ParamReader(const YAML::Node& node, std::string file, std::string path)
