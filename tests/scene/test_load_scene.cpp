@@ -360,6 +360,9 @@ TEST_CASE("scene: a key that lost its colon is named, wherever YAML puts it", "[
     CHECK_THAT(e, Contains("objects[0].friction 0.5"));
     CHECK_THAT(e, Contains("a colon seems to be missing; write 'friction: 0.5'"));
   }
+  SECTION("a document made cyclic by an alias is still checked, not walked forever") {
+    CHECK_THAT(error_of("a: &a [*a]\n" + minimal_scene()), Contains("unknown key 'a'"));
+  }
   SECTION("a value with spaces on one line is not taken for one") {
     CHECK_NOTHROW(scene_from(minimal_scene("", "  kernel: quadratic  # the default\n")));
   }
