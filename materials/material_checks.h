@@ -222,8 +222,8 @@ inline Failures check_wave_speed(const MaterialInfo& m) {
 
 /// One named generic check.
 struct Check {
-  const char* name;                         ///< Short name, e.g. "rest".
-  const char* what;                         ///< What it checks, one line.
+  const char* name;                        ///< Short name, e.g. "rest".
+  const char* what;                        ///< What it checks, one line.
   Failures (*run)(const MaterialInfo& m);  ///< Runs it on one material.
 };
 

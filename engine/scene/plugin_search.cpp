@@ -63,8 +63,8 @@ bool user_chose(const fs::path& file, const std::vector<fs::path>& folders,
 /// How to load a plugin the scene brought along, for the refusal message.
 std::string how_to_allow(const fs::path& file) {
   return "a scene's own plugins are not loaded, since they would run code that came with the "
-         "scene; if you trust it, run with --allow-scene-plugins, or --plugin " + file.string() +
-         ", or add its folder to $MPM_PLUGIN_PATH";
+         "scene; if you trust it, run with --allow-scene-plugins, or --plugin " +
+         file.string() + ", or add its folder to $MPM_PLUGIN_PATH";
 }
 
 }  // namespace

@@ -51,9 +51,8 @@ struct StVenantKirchhoff {
     const mpm::Mat3 dev = C - mean * mpm::Mat3::Identity();
     const mpm::Real s2 = mean + std::sqrt(mpm::Real(2) / 3 * dev.squaredNorm());
     const mpm::Real trE = 0.5 * (C.trace() - 3);
-    const mpm::Real bound =
-        s2 * ((2 * mu + std::max<mpm::Real>(lambda, 0)) * s2 +
-              std::max<mpm::Real>(0, mu * (s2 - 1) + lambda * trE));
+    const mpm::Real bound = s2 * ((2 * mu + std::max<mpm::Real>(lambda, 0)) * s2 +
+                                  std::max<mpm::Real>(0, mu * (s2 - 1) + lambda * trE));
     return std::sqrt(std::max(bound, lambda + 2 * mu) / rho0);
   }
 };
