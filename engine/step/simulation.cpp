@@ -137,6 +137,8 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
       P.C.insert(P.C.end(), n, to_stored(L));
     P.F.insert(P.F.end(), n, StoredMat3::Identity());
     P.object.insert(P.object.end(), n, static_cast<std::uint32_t>(o));
+    for (std::size_t q = info.first; q < info.first + n; ++q)
+      P.id.push_back(static_cast<std::uint32_t>(q));
     P.object_mass.push_back(total_mass / n);
     P.object_volume0.push_back(v0);
 
@@ -155,8 +157,6 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     sim->materials_.push_back({info.first, n, std::move(group)});
     sim->objects_.push_back(info);
   }
-    for (std::size_t q = info.first; q < info.first + n; ++q)
-      P.id.push_back(static_cast<std::uint32_t>(q));
   P.stress.assign(P.size(), StoredMat3::Zero());
   sim->walls_ = build_wall_planes(scene.walls);
   sim->build_stages();
@@ -170,6 +170,13 @@ void Simulation::build_stages() {
     stages_.push_back({std::move(name), std::move(fn), 0.0});
   };
   add("sort", [this](Real) { sort_particles(particles_, scene_.simulation.kernel, grid_, order_); });
+  if (s.reorder_every > 0)
+    add("reorder", [this](Real) {
+      if (substeps_ % scene_.simulation.reorder_every != 0) return;
+      std::vector<ReorderRange> ranges;
+      for (auto& m : materials_) ranges.push_back({m.first, m.count, m.material->state()});
+      reorder_particles(ranges, order_, particles_, reorder_scratch_);
+    });
   add("compute_stress", [this](Real) {
     for (auto& m : materials_)
       m.material->compute_stress(slice(std::as_const(particles_.F), m),
@@ -188,13 +195,6 @@ void Simulation::build_stages() {
   if (s.gravity.squaredNorm() > 0)
     add("gravity", [this](Real dt) { apply_gravity(dt, scene_.simulation.gravity, grid_); });
   if (s.damping > 0)
-  if (s.reorder_every > 0)
-    add("reorder", [this](Real) {
-      if (substeps_ % scene_.simulation.reorder_every != 0) return;
-      std::vector<ReorderRange> ranges;
-      for (auto& m : materials_) ranges.push_back({m.first, m.count, m.material->state()});
-      reorder_particles(ranges, order_, particles_, reorder_scratch_);
-    });
     add("damping", [this](Real dt) { apply_damping(dt, scene_.simulation.damping, grid_); });
   // Walls act on the grid velocities of the end of the substep: place them at time + dt.
   if (!walls_.empty())
