@@ -6,6 +6,7 @@
 
 #include "engine/io/output.h"
 #include "engine/io/preview.h"
+#include "output/output_checks.h"
 #include "support/helpers.h"
 
 using namespace mpm;
@@ -53,14 +54,6 @@ FrameView particles(const std::vector<Vec3>& x, const std::vector<std::uint32_t>
   return v;
 }
 
-/// Whether `pixel` is `base` scaled by some factor in [0.3, 1] (up to rounding).
-bool is_shade_of(const Rgb& pixel, const Rgb& base) {
-  const double k = double(pixel[0] + pixel[1] + pixel[2]) / (base[0] + base[1] + base[2]);
-  if (k < 0.3 || k > 1.01) return false;
-  for (int c = 0; c < 3; ++c)
-    if (std::abs(pixel[c] - k * base[c]) > 2.5) return false;
-  return true;
-}
 
 }  // namespace
 
@@ -107,8 +100,8 @@ TEST_CASE("preview: a floor plane is a grey checkerboard with its outline, behin
     const std::vector<std::uint32_t> id = {0, 1};
     const FrameView two = particles(x, id);
     const RgbImage with = render_preview_image(two, cam, kWidth, kHeight, walls);
-    CHECK(is_shade_of(pixel_at(with, cam, on_edge), object_colour(0)));
-    CHECK(is_shade_of(pixel_at(with, cam, above), object_colour(1)));
+    CHECK(test::is_shade_of(pixel_at(with, cam, on_edge), object_colour(0)));
+    CHECK(test::is_shade_of(pixel_at(with, cam, above), object_colour(1)));
     // The same particle pixels as without walls: nothing drawn over them.
     const RgbImage without = render_preview_image(two, cam, kWidth, kHeight);
     CHECK(pixel_at(with, cam, above) == pixel_at(without, cam, above));
@@ -220,5 +213,5 @@ output: {formats: [png], preview_size: [320, 240]}
     CHECK(pixel_at(img, cam, x) == kPreviewWallLine);
   }
   // The cube itself, in front of everything.
-  CHECK(is_shade_of(pixel_at(img, cam, Vec3(0.5, 0.6, 0.6)), object_colour(0)));
+  CHECK(test::is_shade_of(pixel_at(img, cam, Vec3(0.5, 0.6, 0.6)), object_colour(0)));
 }

@@ -17,6 +17,7 @@
 #include "engine/io/preview.h"
 #include "engine/io/xdmf.h"
 #include "engine/io/output.h"
+#include "output/output_checks.h"
 #include "support/helpers.h"
 
 using namespace mpm;
@@ -251,11 +252,7 @@ TEST_CASE("XDMF: a temporal collection over the HDF5 frames, every path, time an
   }
 
   // One uniform grid per frame, in order.
-  const std::regex grid_re("<Grid [^>]*GridType=\"Uniform\">([\\s\\S]*?)</Grid>");
-  std::vector<std::string> grids;
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), grid_re);
-       it != std::sregex_iterator(); ++it)
-    grids.push_back((*it)[1].str());
+  const std::vector<std::string> grids = test::uniform_grids(text);
   REQUIRE(grids.size() == 3);
 
   const std::regex item_re("<DataItem ([^>]*)>([^<:]+):/(\\w+)</DataItem>");
@@ -325,14 +322,6 @@ TEST_CASE("XDMF: a temporal collection over the HDF5 frames, every path, time an
 
 namespace {
 
-/// Whether `pixel` is `base` scaled by some factor in [0.3, 1] (up to rounding).
-bool is_shade_of(const Rgb& pixel, const Rgb& base) {
-  const double k = double(pixel[0] + pixel[1] + pixel[2]) / (base[0] + base[1] + base[2]);
-  if (k < 0.3 || k > 1.01) return false;
-  for (int c = 0; c < 3; ++c)
-    if (std::abs(pixel[c] - k * base[c]) > 2.5) return false;
-  return true;
-}
 
 /// A camera 2.5 m in front of (0.5, 0.5, 0.5), looking along -z.
 PreviewCamera front_camera(double radius) {
@@ -383,8 +372,8 @@ TEST_CASE("preview: a particle at look_at is a shaded disc of its object's colou
   for (int y = 22; y <= 25; ++y)
     for (int x = 30; x <= 33; ++x) {
       INFO("pixel " << x << ", " << y);
-      CHECK(is_shade_of(img.at(x, y), object_colour(1)));
-      CHECK_FALSE(is_shade_of(img.at(x, y), object_colour(0)));
+      CHECK(test::is_shade_of(img.at(x, y), object_colour(1)));
+      CHECK_FALSE(test::is_shade_of(img.at(x, y), object_colour(0)));
     }
   const std::pair<int, int> outside[] = {{0, 0}, {63, 0}, {0, 47}, {63, 47}, {32, 14}, {42, 24}};
   for (auto [x, y] : outside) {
@@ -408,7 +397,7 @@ TEST_CASE("preview: a particle at look_at is a shaded disc of its object's colou
       }
       const RgbImage im = render_preview_image(FrameView{xs, {}, ids, {}, 0, 0}, c, 64, 48);
       INFO("near first: " << near_first);
-      CHECK(is_shade_of(im.at(32, 24), object_colour(0)));
+      CHECK(test::is_shade_of(im.at(32, 24), object_colour(0)));
     }
   }
 }
@@ -444,8 +433,8 @@ TEST_CASE("preview: the default camera frames the whole grid box from the front,
   int object0 = 0, object1 = 0, background = 0;
   for (int y = 0; y < img.height; ++y)
     for (int x = 0; x < img.width; ++x) {
-      object0 += is_shade_of(img.at(x, y), object_colour(0));
-      object1 += is_shade_of(img.at(x, y), object_colour(1));
+      object0 += test::is_shade_of(img.at(x, y), object_colour(0));
+      object1 += test::is_shade_of(img.at(x, y), object_colour(1));
       background += img.at(x, y) == kPreviewBackground;
     }
   CHECK(object0 > 1000);

@@ -14,6 +14,7 @@
 #include <hdf5.h>
 
 #include "engine/io/xdmf.h"
+#include "output/output_checks.h"
 #include "support/helpers.h"
 
 using namespace mpm;
@@ -118,11 +119,7 @@ TEST_CASE("XDMF: one connectivity file for all frames, and every per-particle da
   CHECK(read_connectivity(conn) == want);
 
   const std::string text = slurp(xmf);
-  const std::regex grid_re("<Grid [^>]*GridType=\"Uniform\">([\\s\\S]*?)</Grid>");
-  std::vector<std::string> grids;
-  for (auto it = std::sregex_iterator(text.begin(), text.end(), grid_re);
-       it != std::sregex_iterator(); ++it)
-    grids.push_back((*it)[1].str());
+  const std::vector<std::string> grids = test::uniform_grids(text);
   REQUIRE(grids.size() == 3);
   const std::string whole =
       "<Topology TopologyType=\"Polyvertex\" NumberOfElements=\"1000\" NodesPerElement=\"1\">\n"
