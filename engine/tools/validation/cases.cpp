@@ -97,6 +97,14 @@ double rms(const std::vector<double>& e) {
   return e.empty() ? 0 : std::sqrt(s / e.size());
 }
 
+/// Where each particle is in memory, by id. The reorder stage moves particles in memory
+/// (simulation.reorder_every), so a probe that remembers particles keeps their ids.
+std::vector<std::size_t> index_by_id(const Particles& p) {
+  std::vector<std::size_t> at(p.size());
+  for (std::size_t q = 0; q < p.size(); ++q) at[p.id[q]] = q;
+  return at;
+}
+
 /// 1. Free fall and projectile: x(t) = x0 + v0 t + g t^2 / 2 for every object's centre of mass.
 /// Symplectic Euler with a fixed dt lands at x(t) + g dt t / 2 exactly, reported as
 /// "scheme_error".
@@ -133,7 +141,11 @@ class FreeFall final : public Probe {
 /// both are exact for fixed corotated at any strain (sigma = E (lambda - 1) in uniaxial strain).
 class RestingColumn final : public Probe {
  public:
-  void on_start(const Simulation& sim, int) override { X0_ = sim.particles().x; }
+  void on_start(const Simulation& sim, int) override {
+    const Particles& p = sim.particles();
+    X0_.resize(p.size());
+    for (std::size_t q = 0; q < p.size(); ++q) X0_[p.id[q]] = p.x[q];
+  }
   void score(const Simulation& sim, Outcome& out) override {
     const ObjectDesc& od = sim.scene().objects.at(0);
     const Box box = cube_box(od);
@@ -146,9 +158,10 @@ class RestingColumn final : public Probe {
     double top_u = 0, top_exact = 0;
     int top = 0;
     for (std::size_t q = 0; q < p.size(); ++q) {
-      const double Y = X0_[q].y() - box.min.y();
+      const Vec3& X = X0_[p.id[q]];
+      const double Y = X.y() - box.min.y();
       const double u_exact = -(rho * g / E) * (H * Y - 0.5 * Y * Y);
-      const double u = p.x[q].y() - X0_[q].y();
+      const double u = p.x[q].y() - X.y();
       du.push_back((u - u_exact) / u_top);
       dsig.push_back((cauchy_stress(p, q)(1, 1) + rho * g * (H - Y)) / (rho * g * H));
       if (Y > 0.9 * H) top_u += u, top_exact += u_exact, ++top;
@@ -161,7 +174,7 @@ class RestingColumn final : public Probe {
   }
 
  private:
-  std::vector<Vec3> X0_;
+  std::vector<Vec3> X0_;  // reference position, by particle id
 };
 
 /// 3. A free-free bar along x (nu = 0) given v = a (x - centre): its first mode has period
@@ -173,9 +186,11 @@ class BarVibration final : public Probe {
     const Particles& p = sim.particles();
     box_ = cube_box(sim.scene().objects.at(0));
     const double L = box_.max.x() - box_.min.x();
+    X0_.resize(p.size());
+    mode_.resize(p.size());
     for (std::size_t i = 0; i < p.size(); ++i) {  // q = sum_p w_p (x_p - X_p), fixed weights
-      X0_.push_back(p.x[i].x());
-      mode_.push_back(p.mass(i) * std::cos(M_PI * (p.x[i].x() - box_.min.x()) / L));
+      X0_[p.id[i]] = p.x[i].x();
+      mode_[p.id[i]] = p.mass(i) * std::cos(M_PI * (p.x[i].x() - box_.min.x()) / L);
     }
     energy0_ = sim.total_energy();
     energy_.name = "energy / initial energy";
@@ -185,7 +200,8 @@ class BarVibration final : public Probe {
   void on_substep(const Simulation& sim, int) override {
     const Particles& p = sim.particles();
     double q = 0;
-    for (std::size_t i = 0; i < p.size(); ++i) q += mode_[i] * (p.x[i].x() - X0_[i]);
+    for (std::size_t i = 0; i < p.size(); ++i)
+      q += mode_[p.id[i]] * (p.x[i].x() - X0_[p.id[i]]);
     const double t = sim.time();
     if (!q_.empty() && q_.back() != 0 && q != 0 && (q_.back() > 0) != (q > 0))
       crossings_.push_back(t_.back() + (t - t_.back()) * q_.back() / (q_.back() - q));
@@ -216,7 +232,7 @@ class BarVibration final : public Probe {
   }
 
  private:
-  std::vector<double> X0_, mode_;  // reference x, and m cos(pi X / L) per particle
+  std::vector<double> X0_, mode_;  // reference x, and m cos(pi X / L), by particle id
   Box box_;
   double energy0_ = 0;
   std::vector<double> t_, q_, crossings_;
@@ -315,9 +331,9 @@ class UniaxialCompression final : public Probe {
     for (const Vec3& x : p.x) lo = std::min(lo, x.y()), hi = std::max(hi, x.y());
     for (std::size_t q = 0; q < p.size(); ++q) {
       const double Y = (p.x[q].y() - lo) / (hi - lo);
-      if (Y > 0.2 && Y < 0.3) lower_.push_back(q);
-      if (Y > 0.7 && Y < 0.8) upper_.push_back(q);
-      if (Y > 0.2 && Y < 0.8) middle_.push_back(q);
+      if (Y > 0.2 && Y < 0.3) lower_.push_back(p.id[q]);
+      if (Y > 0.7 && Y < 0.8) upper_.push_back(p.id[q]);
+      if (Y > 0.2 && Y < 0.8) middle_.push_back(p.id[q]);
     }
     gap0_ = gap(sim);
     stress_.name = "mean sigma_yy / exact";
@@ -338,19 +354,21 @@ class UniaxialCompression final : public Probe {
 
  private:
   double mean_y(const Simulation& sim, const std::vector<std::size_t>& band) const {
+    const std::vector<std::size_t> at = index_by_id(sim.particles());
     double y = 0;
-    for (std::size_t q : band) y += sim.particles().x[q].y();
+    for (std::size_t id : band) y += sim.particles().x[at[id]].y();
     return y / band.size();
   }
   double gap(const Simulation& sim) const { return mean_y(sim, upper_) - mean_y(sim, lower_); }
   std::pair<double, double> stresses(const Simulation& sim) const {
     const ObjectDesc& od = sim.scene().objects.at(0);
     const Lame lame = lame_from_young(param(od, "E"), param(od, "nu"));
+    const std::vector<std::size_t> at = index_by_id(sim.particles());
     double s = 0;
-    for (std::size_t q : middle_) s += cauchy_stress(sim.particles(), q)(1, 1);
+    for (std::size_t id : middle_) s += cauchy_stress(sim.particles(), at[id])(1, 1);
     return {s / middle_.size(), neo_hookean_uniaxial_stress(lame.mu, lame.lambda, gap(sim) / gap0_)};
   }
-  std::vector<std::size_t> lower_, upper_, middle_;
+  std::vector<std::size_t> lower_, upper_, middle_;  // particle ids
   double gap0_ = 1;
   Series stress_;
 };
