@@ -42,13 +42,14 @@ Usage:
                                  plugins) with its keys, units, defaults and ranges
   mpm preview DIR [--fps N]      join DIR/preview/frame_*.png into DIR/preview.mp4 (ffmpeg)
   mpm bench [--cases jello,snow,sparse,two_cubes,machine] [--particles N] [--threads N]
-            [--csv FILE]         time standard cases (median of 3 after a warm-up;
+            [--csv FILE] [--simd on|off]
+                                 time standard cases (median of 3 after a warm-up;
                                  two_cubes: the whole scene, once; machine: peak FLOP
-                                 rate and memory bandwidth)
+                                 rate and memory bandwidth; --simd off: the scalar path)
   mpm study [--quick] [--cases SWEEP,...] -o DIR
                                  run the validation cases over sweeps of h, particles per
-                                 cell, CFL, dt, transfer and kernel; write DIR/study.csv and
-                                 DIR/series.csv (docs/accuracy.md)
+                                 cell, CFL, dt, transfer, kernel, grid precision and SIMD;
+                                 write DIR/study.csv and DIR/series.csv (docs/accuracy.md)
   mpm golden SCENE.yaml --frames N -o FILE [--force]
                                  run N frames and write the run summary to FILE (a golden;
                                  --force replaces an existing FILE)
@@ -88,6 +89,7 @@ struct Args {
   std::vector<std::string> given;  ///< The options given, in order (to refuse ignored ones).
   std::string cases, csv;
   std::optional<long> particles;
+  std::optional<bool> simd;  ///< mpm bench --simd on|off
   std::optional<int> frames, threads, fps;
   std::vector<std::string> sets, plugins;
   bool quiet = false, force = false, quick = false, allow_scene_plugins = false;
@@ -150,6 +152,10 @@ Args parse_args(int argc, char** argv) {
       a.csv = value();
     } else if (w == "--particles") {
       a.particles = parse_count(w, value(), 1000);
+    } else if (w == "--simd") {
+      const std::string v = value();
+      if (v != "on" && v != "off") usage_error("--simd expects on or off, got '" + v + "'");
+      a.simd = v == "on";
     } else if (w == "--tol") {
       a.tols.push_back(value());
     } else if (w == "-o") {
@@ -200,6 +206,7 @@ void check_options(const Args& a) {
       {"--cases", {"bench", "study"}},
       {"--csv", {"bench"}},
       {"--particles", {"bench"}},
+      {"--simd", {"bench"}},
       {"--tol", {"compare"}},
       {"-o", {"golden", "study"}},
       {"--fps", {"preview"}},
@@ -296,6 +303,7 @@ int cmd_bench(const Args& args) {
   mpm::BenchOptions opt;
   if (args.threads) opt.threads = *args.threads;
   if (args.particles) opt.particles = *args.particles;
+  if (args.simd) opt.simd = *args.simd;
   if (!args.cases.empty()) opt.cases = split_list(args.cases);
   try {
     // `machine`: the peak FLOP rate and memory bandwidth, for the roofline.

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 #include <omp.h>
 
@@ -70,6 +71,36 @@ std::vector<Setting> over(std::vector<T> values, Setting base, Fn set) {
   return out;
 }
 
+/// Issue 15's speed options at each of `levels`: transfer apic and mls, each with the grid in
+/// double and in float and the transfers scalar and SIMD (simulation.simd always set, so the
+/// scene default does not matter); at the first level also each of `others` (e.g. pic,
+/// flip 0.99) on the double grid, scalar, for reference.
+std::vector<Setting> speed_options(std::vector<int> levels, Setting base,
+                                   std::vector<std::pair<const char*, double>> others) {
+  std::vector<Setting> out;
+  for (Setting at_h : over_refine(levels, base)) {
+    for (const char* t : {"apic", "mls"})
+      for (const char* precision : {"double", "float"})
+        for (bool simd : {false, true}) {
+          Setting s = at_h;
+          s.transfer = t;
+          s.grid_precision = precision;
+          s.simd = simd;
+          out.push_back(s);
+        }
+    if (at_h.refine != levels.front()) continue;
+    for (auto [t, blend] : others) {
+      Setting s = at_h;
+      s.transfer = t;
+      if (blend > 0) s.flip_blend = blend;
+      s.grid_precision = "double";
+      s.simd = false;
+      out.push_back(s);
+    }
+  }
+  return out;
+}
+
 /// 1, 8 and 27 particles per cell, each on a lattice and jittered.
 std::vector<Setting> ppc_sweep(Setting base) {
   std::vector<Setting> out;
@@ -97,6 +128,7 @@ const std::vector<Experiment>& experiments() {
       s.dt = 1.0;
     };
     const auto set_dt = [](Setting& s, double dt) { s.dt = dt; };
+    const std::vector<std::pair<const char*, double>> pic_flip = {{"pic", 0.0}, {"flip", 0.99}};
     std::vector<Setting> quick_h = over_refine({1, 2, 4});
     for (Setting& s : quick_h) s.frames = 12;
     return std::vector<Experiment>{
@@ -111,6 +143,12 @@ const std::vector<Experiment>& experiments() {
         {"column_h", "resting_column", over_refine({1, 2, 4}), {}},
         {"collision", "sphere_collision", over_transfers({}), over_refine({1})},
         {"compression", "uniaxial_compression", over_refine({1, 2}), {}},
+        // Issue 15: mls against apic, the float grid against double, SIMD against scalar.
+        // Kept out of --quick (about 10 minutes together).
+        {"speed_bar", "bar_vibration", speed_options({1, 2}, {}, pic_flip), {}},
+        {"speed_spin", "spinning_cube", speed_options({1, 2}, {}, pic_flip), {}},
+        {"speed_collision", "sphere_collision", speed_options({1, 2}, {}, pic_flip), {}},
+        {"speed_column", "resting_column", speed_options({1, 2}, {}, {}), {}},
     };
   }();
   return all;
@@ -139,11 +177,19 @@ std::vector<SceneOverride> overrides_for(const Setting& s, const SceneDesc& scen
   if (s.flip_blend) o.push_back({"simulation.flip_blend", text(*s.flip_blend)});
   if (s.kernel) o.push_back({"simulation.kernel", *s.kernel});
   if (s.frames) o.push_back({"simulation.frames", std::to_string(*s.frames)});
+  if (s.grid_precision) o.push_back({"grid.precision", *s.grid_precision});
+  if (s.simd) o.push_back({"simulation.simd", *s.simd ? "true" : "false"});
   return o;
 }
 
 const char* transfer_name(Transfer t) {
-  return t == Transfer::apic ? "apic" : t == Transfer::pic ? "pic" : "flip";
+  switch (t) {
+    case Transfer::apic: return "apic";
+    case Transfer::pic: return "pic";
+    case Transfer::flip: return "flip";
+    case Transfer::mls: return "mls";
+  }
+  return "?";
 }
 const char* kernel_name(Kernel k) {
   return k == Kernel::linear ? "linear" : k == Kernel::quadratic ? "quadratic" : "cubic";
@@ -237,6 +283,8 @@ std::vector<StudyRow> run_study(const StudyOptions& opt,
         row.transfer += blend.str();
       }
       row.kernel = kernel_name(scene.simulation.kernel);
+      row.grid_precision = scene.grid.float_nodes ? "float" : "double";
+      row.simd = scene.simulation.simd;
       row.cfl = scene.simulation.cfl.value_or(0);
       row.dt = scene.simulation.dt.value_or(0);
       const std::string out = run_in_child(
@@ -259,21 +307,26 @@ std::string setting_label(const StudyRow& r) {
   if (r.cfl > 0) s << " cfl=" << r.cfl;
   else s << " dt=" << r.dt;
   s << ' ' << r.transfer;
+  // Only where the sweep sets them, so the other sweeps' labels end in the transfer.
+  if (r.setting.grid_precision) s << " grid=" << r.grid_precision;
+  if (r.setting.simd) s << (r.simd ? " simd" : " scalar");
   return s.str();
 }
 
 std::string study_csv(const std::vector<StudyRow>& rows) {
   std::ostringstream s;
   s.precision(9);
-  s << "experiment,case,kernel,h,ppc,sampling,cfl,dt,transfer,precision,status,error_name,error,"
+  s << "experiment,case,kernel,h,ppc,sampling,cfl,dt,transfer,precision,grid_precision,simd,"
+       "status,error_name,error,"
        "particles,substeps,particle_steps,wall_seconds,particle_steps_per_second,peak_rss_mb,"
        "measures\n";
   for (const StudyRow& r : rows) {
     const Outcome& o = r.outcome;
     const double steps = static_cast<double>(o.particles) * o.substeps;
     s << r.experiment << ',' << r.case_name << ',' << r.kernel << ',' << r.h << ',' << r.ppc << ','
-      << r.sampling << ',' << r.cfl << ',' << r.dt << ',' << r.transfer << ',' << kStoredPrecision << ',' << o.status << ",\"" << o.error_name
-      << "\"," << o.error << ',' << o.particles << ',' << o.substeps << ',' << steps << ','
+      << r.sampling << ',' << r.cfl << ',' << r.dt << ',' << r.transfer << ','
+      << kStoredPrecision << ',' << r.grid_precision << ',' << (r.simd ? "true" : "false") << ','
+      << o.status << ",\"" << o.error_name << "\"," << o.error << ',' << o.particles << ',' << o.substeps << ',' << steps << ','
       << o.seconds << ',' << (o.seconds > 0 ? steps / o.seconds : 0) << ','
       << r.peak_rss_bytes / 1e6 << ",\"";
     for (std::size_t i = 0; i < o.measures.size(); ++i)
@@ -301,7 +354,7 @@ int study_main(const StudyOptions& opt, const std::filesystem::path& dir) {
   std::vector<StudyRow> rows;
   try {
     rows = run_study(opt, [](const StudyRow& r) {
-      std::printf("%-14s %-20s %-44s %-8s error %.3e  %6.1f s  %.0f MB\n", r.experiment.c_str(),
+      std::printf("%-15s %-20s %-58s %-8s error %.3e  %6.1f s  %.0f MB\n", r.experiment.c_str(),
                   r.case_name.c_str(), setting_label(r).c_str(), r.outcome.status.c_str(),
                   r.outcome.error, r.outcome.seconds, r.peak_rss_bytes / 1e6);
       std::fflush(stdout);

@@ -1,6 +1,7 @@
 #pragma once
 /// \file `mpm study`: the validation cases over sweeps of grid spacing, particles per cell,
-/// CFL number, dt, transfer scheme and kernel, with error, wall time and memory per run.
+/// CFL number, dt, transfer scheme, kernel, grid precision and SIMD transfers, with error, wall
+/// time and memory per run.
 
 #include <functional>
 #include <optional>
@@ -22,6 +23,8 @@ struct Setting {
   std::optional<double> flip_blend;   ///< FLIP fraction.
   std::optional<std::string> kernel;  ///< linear, quadratic or cubic.
   std::optional<int> frames;          ///< simulation.frames.
+  std::optional<std::string> grid_precision;  ///< grid.precision: float or double.
+  std::optional<bool> simd;           ///< simulation.simd: SIMD (true) or scalar transfers.
 };
 
 /// One run of a study: what was set and what came out.
@@ -33,6 +36,8 @@ struct StudyRow {
   int ppc = 0;             ///< Particles per cell of the first object.
   std::string sampling;    ///< jittered or regular (first object).
   std::string transfer;    ///< Transfer scheme (with the FLIP fraction, e.g. "flip0.99").
+  std::string grid_precision;  ///< Grid node values: "float" or "double".
+  bool simd = false;       ///< simulation.simd as run (flip has no SIMD path: scalar anyway).
   std::string kernel;      ///< Kernel name.
   double cfl = 0;          ///< CFL number (0 when dt is fixed).
   double dt = 0;           ///< Fixed dt or dt cap, s.
