@@ -22,8 +22,10 @@ namespace {
 
 /// A falling cube of `material` on a slip floor, sized for about `particles` particles at
 /// 8 per cell, in a grid whose side is `domain_scale` times the tight one.
-SceneDesc bench_scene(const std::string& material, long particles, double domain_scale) {
+SceneDesc bench_scene(const std::string& material, long particles, double domain_scale,
+                      bool simd) {
   SceneDesc s;
+  s.simulation.simd = simd;
   s.file = "bench";
   const double cells_per_side = std::cbrt(particles / 8.0);
   const int dims = static_cast<int>(std::ceil((cells_per_side + 12) * domain_scale));
@@ -52,10 +54,11 @@ SceneDesc bench_scene(const std::string& material, long particles, double domain
 }
 
 /// The seeds' scenes/two_cubes.yaml as a whole run (all its frames, no output), timed once.
-BenchResult run_whole_scene(const std::string& name) {
+BenchResult run_whole_scene(const std::string& name, bool simd) {
   MaterialRegistry registry = builtin_registry();
-  const SceneDesc scene = load_scene(std::filesystem::path(MPM_SOURCE_DIR) / "scenes" /
+  SceneDesc scene = load_scene(std::filesystem::path(MPM_SOURCE_DIR) / "scenes" /
                                          (name + ".yaml"), registry, LoadOptions{{}, false, {}});
+  scene.simulation.simd = simd;
   const auto sim = Simulation::create(scene, registry);
   const RunResult run = run_frames(*sim, scene.simulation.frames, scene.simulation.frame_dt, {});
   if (run.status != "ok") throw std::runtime_error(name + " ended " + run.status);
@@ -75,11 +78,11 @@ BenchResult run_whole_scene(const std::string& name) {
 }
 
 BenchResult run_case(const std::string& name, const BenchOptions& opt) {
-  if (name == "two_cubes") return run_whole_scene(name);
+  if (name == "two_cubes") return run_whole_scene(name, opt.simd);
   SceneDesc scene;
-  if (name == "jello") scene = bench_scene("corotated", opt.particles, 1);
-  else if (name == "snow") scene = bench_scene("snow", opt.particles, 1);
-  else if (name == "sparse") scene = bench_scene("corotated", opt.particles, 2);
+  if (name == "jello") scene = bench_scene("corotated", opt.particles, 1, opt.simd);
+  else if (name == "snow") scene = bench_scene("snow", opt.particles, 1, opt.simd);
+  else if (name == "sparse") scene = bench_scene("corotated", opt.particles, 2, opt.simd);
   else throw std::invalid_argument("unknown bench case '" + name + "'; expected jello, snow or sparse");
   const auto sim = Simulation::create(scene, builtin_registry());
   BenchResult r;
@@ -151,6 +154,7 @@ std::vector<BenchResult> run_benchmarks(const BenchOptions& opt) {
     const std::string text =
         run_in_child([&] { return serialize(run_case(name, opt)) + "\n"; }, "bench case '" + name + "'");
     out.push_back(deserialize(text));
+    out.back().simd = opt.simd;
   }
   return out;
 }
@@ -161,6 +165,10 @@ std::string format_bench_table(const std::vector<BenchResult>& results) {
   std::snprintf(line, sizeof line, "mpm bench  (particle matrices stored in %s, arithmetic in double; commit %s)\n",
                 kStoredPrecision, git_commit());
   s << line;
+  if (!results.empty())
+    s << "transfers: " << (results.front().simd ? "SIMD where supported (simulation.simd: true)"
+                                                : "scalar double (simulation.simd: false)")
+      << "\n";
   std::snprintf(line, sizeof line, "%-9s %10s %10s %10s %8s %7s %14s %10s\n", "case",
                 "particles", "nodes", "stored", "substeps", "threads", "Mparticle-st/s",
                 "B/particle");

@@ -15,6 +15,7 @@ struct BenchOptions {
   int substeps = 20;        ///< Substeps per timed repetition.
   int repeats = 3;          ///< Timed repetitions (the median is reported), after one warm-up.
   int threads = 0;          ///< 0: all cores.
+  bool simd = true;         ///< simulation.simd of every case (false: the scalar double path).
 };
 
 /// One case's measurements.
@@ -25,6 +26,7 @@ struct BenchResult {
   long stored_nodes = 0;             ///< Nodes with storage (the active blocks) at the end.
   int substeps = 0;                  ///< Substeps per repetition.
   int threads = 0;                   ///< Threads used.
+  bool simd = true;                  ///< Whether simulation.simd was on.
   double particle_steps_per_second = 0;  ///< Median over repetitions.
   double peak_rss_bytes_per_particle = 0;  ///< Peak resident memory of the case / particles.
   std::vector<std::pair<std::string, double>> stage_ns;  ///< ns per particle-step per stage.
