@@ -98,3 +98,65 @@ TEST_CASE("validation: Neo-Hookean block under uniaxial compression to 60 %", "[
   // (the study's ppc sweep on the bar); the bound allows twice that.
   CHECK(o.error < 0.03);
 }
+
+namespace {
+
+/// Runs an incline case for one floor and transfer scheme.
+Outcome run_incline(const std::string& name, const std::string& boundary,
+                    const std::string& transfer) {
+  return run(name, {{"walls[0].boundary", boundary}, {"simulation.transfer", transfer}});
+}
+
+}  // namespace
+
+TEST_CASE("validation: a block slides down a 30 degree incline the exact distance",
+          "[validation][incline]") {
+  // Coulomb with mu = 0.2 < tan 30: a = g (sin 30 - 0.2 cos 30). A block at rest on a wall
+  // moves rigidly, which every transfer carries exactly; what remains is the wall's friction
+  // impulse, which must equal mu times the normal impulse. 5 % is the issue's bound.
+  for (const char* boundary : {"slip", "separate"})
+    for (const char* transfer : {"pic", "flip", "apic", "mls"}) {
+      const Outcome o = run_incline("sliding_block", boundary, transfer);
+      INFO(boundary << ' ' << transfer << ": slid " << o.measure("distance").value
+                    << " m against " << o.measure("distance").exact << " m");
+      CHECK(o.error < 0.05);
+    }
+}
+
+TEST_CASE("validation: a block on a 30 degree incline with friction 0.8 stays",
+          "[validation][incline]") {
+  // mu = 0.8 > tan 30 = 0.577: the friction can hold the block, which must not creep. 2 mm
+  // in 0.5 s is the issue's bound (0.5 % of the 0.40 m the block slides at mu = 0.2).
+  for (const char* boundary : {"slip", "separate"})
+    for (const char* transfer : {"pic", "flip", "apic", "mls"}) {
+      const Outcome o = run_incline("sticking_block", boundary, transfer);
+      INFO(boundary << ' ' << transfer << ": moved " << o.measure("distance").value << " m");
+      CHECK(o.error < 2e-3);
+    }
+}
+
+TEST_CASE("validation: a ball rolls down a 30 degree incline with APIC and MLS",
+          "[validation][incline]") {
+  // mu = 0.5 > (2/7) tan 30: rolling without slipping, a = (5/7) g sin 30. Rolling needs the
+  // transfers to keep the ball's spin: APIC and MLS do (Jiang et al. 2015; the spinning cube
+  // above). Within 10 % (the issue's bound). The contact point is not at rest: it slides at
+  // about 20 % of the centre's speed (docs/validation.md, case 9, an open defect), which is
+  // why the ball runs ahead of the rolling answer; the slip ratio is reported, not bounded.
+  for (const char* boundary : {"slip", "separate"})
+    for (const char* transfer : {"apic", "mls"}) {
+      const Outcome o = run_incline("rolling_ball", boundary, transfer);
+      INFO(boundary << ' ' << transfer << ": rolled " << o.measure("distance").value
+                    << " m against " << o.measure("distance").exact << " m, slip ratio "
+                    << o.measure("slip_ratio").value << ", I / m R^2 "
+                    << o.measure("inertia_ratio").value);
+      CHECK(o.error < 0.1);
+    }
+  // PIC and FLIP lose angular momentum in every transfer (PIC all of it within a second on the
+  // spinning cube), so the ball's spin lags: it drags instead of rolling. Recorded, not hidden.
+  for (const char* transfer : {"pic", "flip"}) {
+    const Outcome o = run_incline("rolling_ball", "slip", transfer);
+    INFO(transfer << ": rolled " << o.measure("distance").value << " m against "
+                  << o.measure("distance").exact << " m");
+    CHECK(o.measure("distance").value < 0.9 * o.measure("distance").exact);
+  }
+}

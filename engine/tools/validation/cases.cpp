@@ -373,6 +373,133 @@ class UniaxialCompression final : public Probe {
   Series stress_;
 };
 
+/// The incline of cases 7-9: the scene's first wall is a plane floor, and gravity is tilted
+/// against it. Splits g into its part into the floor, g_n = -g . n, and its part along it,
+/// |g_t| down the slope s (references.md, "Contact and friction").
+struct Incline {
+  Vec3 normal, down_slope;   ///< Floor normal (unit, into the free side), slope direction.
+  double g_n = 0, g_t = 0;   ///< Gravity into the floor and along it, m/s^2.
+  double friction = 0;       ///< The floor's Coulomb coefficient.
+  Vec3 point;                ///< A point on the floor.
+
+  explicit Incline(const SceneDesc& scene) {
+    if (scene.walls.empty() || scene.walls[0].shape != WallDesc::Shape::plane)
+      throw std::invalid_argument("incline case needs a plane wall first");
+    const WallDesc& w = scene.walls[0];
+    normal = w.normal.normalized();
+    point = w.point;
+    friction = w.friction;
+    const Vec3 g = scene.simulation.gravity;
+    g_n = -g.dot(normal);
+    const Vec3 gt = g + g_n * normal;
+    g_t = gt.norm();
+    down_slope = g_t > 0 ? Vec3(gt / g_t) : Vec3::Zero();
+  }
+  /// tan of the slope angle.
+  double tan_slope() const { return g_t / g_n; }
+};
+
+/// 7 and 8. A block on an incline, at rest at the start: it slides x = a t^2 / 2 with
+/// a = g (sin theta - mu cos theta) if mu < tan theta, and stays if mu >= tan theta (Coulomb).
+/// Sliding is scored by the relative error of the distance; sticking by the distance itself.
+class InclineBlock final : public Probe {
+ public:
+  void on_start(const Simulation& sim, int) override {
+    x0_ = centroid(sim, 0);
+    series_.name = "distance down the slope, m";
+    series_.t.push_back(0);
+    series_.value.push_back(0);
+  }
+  void on_frame(const Simulation& sim, int) override {
+    series_.t.push_back(sim.time());
+    series_.value.push_back((centroid(sim, 0) - x0_).dot(Incline(sim.scene()).down_slope));
+  }
+  void score(const Simulation& sim, Outcome& out) override {
+    const Incline in(sim.scene());
+    const double t = sim.time();
+    const double a = std::max(0.0, in.g_t - in.friction * in.g_n);
+    const Vec3 d = centroid(sim, 0) - x0_;
+    const double dist = d.dot(in.down_slope), exact = 0.5 * a * t * t;
+    if (a > 0) {
+      out.error_name = "distance slid relative error";
+      out.error = std::abs(dist - exact) / exact;
+    } else {
+      out.error_name = "distance slid (exact 0), m";
+      out.error = std::abs(dist);
+    }
+    out.measures.push_back({"distance", dist, exact, "m"});
+    out.measures.push_back({"speed", mean_velocity(sim, 0).dot(in.down_slope), a * t, "m/s"});
+    out.measures.push_back({"normal_displacement", d.dot(in.normal), 0, "m"});
+    out.series.push_back(series_);
+  }
+
+ private:
+  Vec3 x0_;
+  Series series_;
+};
+
+/// 9. A solid ball on an incline rolls without slipping if mu >= (2/7) tan theta:
+/// x = (5/7) g sin theta t^2 / 2 (I = (2/5) m R^2). The slip ratio is the contact point's speed
+/// down the slope over the centre's: 0 rolling, 1 sliding without spin. The spin is
+/// omega = I^-1 L about the centroid from the particles (APIC's affine part left out).
+class RollingBall final : public Probe {
+ public:
+  void on_start(const Simulation& sim, int) override {
+    const Incline in(sim.scene());
+    x0_ = centroid(sim, 0);
+    radius_ = (x0_ - in.point).dot(in.normal);  // the centre's height above the floor
+    series_.name = "distance / exact rolling distance";
+  }
+  void on_frame(const Simulation& sim, int) override {
+    const double t = sim.time();
+    series_.t.push_back(t);
+    series_.value.push_back((centroid(sim, 0) - x0_).dot(Incline(sim.scene()).down_slope) /
+                            (0.5 * acceleration(sim) * t * t));
+  }
+  void score(const Simulation& sim, Outcome& out) override {
+    const Incline in(sim.scene());
+    const double t = sim.time();
+    const double exact = 0.5 * acceleration(sim) * t * t;
+    const double dist = (centroid(sim, 0) - x0_).dot(in.down_slope);
+    const Vec3 c = centroid(sim, 0), vc = mean_velocity(sim, 0);
+    const Particles& p = sim.particles();
+    const ObjectInfo& o = sim.objects()[0];
+    Mat3 I = Mat3::Zero();
+    Vec3 L = Vec3::Zero();
+    for (std::size_t q = o.first; q < o.first + o.count; ++q) {
+      const Vec3 r = p.x[q] - c;
+      I += p.mass(q) * (r.squaredNorm() * Mat3::Identity() - r * r.transpose());
+      L += p.mass(q) * r.cross(p.v[q] - vc);
+    }
+    const Vec3 omega = I.ldlt().solve(L);
+    const Vec3 contact = vc + omega.cross(-radius_ * in.normal);
+    const double v = vc.dot(in.down_slope);
+    out.error_name = "distance rolled relative error";
+    out.error = std::abs(dist - exact) / exact;
+    out.measures.push_back({"distance", dist, exact, "m"});
+    out.measures.push_back({"speed", v, acceleration(sim) * t, "m/s"});
+    out.measures.push_back({"slip_ratio", contact.dot(in.down_slope) / v, 0, ""});
+    // The sampled ball's own I / (m R^2) about the rolling axis, R the centre's height above
+    // the floor: 2/5 for a solid ball.
+    const Vec3 axis = in.normal.cross(in.down_slope);
+    out.measures.push_back({"inertia_ratio", axis.dot(I * axis) / (o.mass * radius_ * radius_),
+                            0.4, ""});
+    out.series.push_back(series_);
+  }
+
+ private:
+  /// (5/7) g sin theta when friction can hold the contact, else the sliding ball's
+  /// g (sin theta - mu cos theta).
+  static double acceleration(const Simulation& sim) {
+    const Incline in(sim.scene());
+    if (in.friction >= 2.0 / 7.0 * in.tan_slope()) return 5.0 / 7.0 * in.g_t;
+    return in.g_t - in.friction * in.g_n;
+  }
+  Vec3 x0_;
+  double radius_ = 0;
+  Series series_;
+};
+
 template <class P>
 Probe* make() {
   return new P;
@@ -393,6 +520,12 @@ const std::vector<Case>& cases() {
       {"spinning_cube", "angular momentum of a spinning cube with no gravity", make<SpinningCube>},
       {"uniaxial_compression", "Neo-Hookean block between slip walls against uniaxial stress",
        make<UniaxialCompression>},
+      {"sliding_block", "block on a 30 degree incline, friction 0.2, against x = g (sin - mu cos) t^2 / 2",
+       make<InclineBlock>},
+      {"sticking_block", "block on a 30 degree incline, friction 0.8 > tan 30: it stays",
+       make<InclineBlock>},
+      {"rolling_ball", "solid ball on a 30 degree incline against x = (5/7) g sin t^2 / 2",
+       make<RollingBall>},
   };
   return all;
 }
