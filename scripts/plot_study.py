@@ -2,8 +2,9 @@
 """Figures of the accuracy study from the CSV files `mpm study -o DIR` writes.
 
 Usage: scripts/plot_study.py DIR [-o IMAGE_DIR]
-Writes IMAGE_DIR/accuracy_error_vs_time.png, accuracy_convergence.png and accuracy_drift.png
-(IMAGE_DIR defaults to docs/images). Needs Debian's python3-matplotlib (hence /usr/bin/python3).
+Writes IMAGE_DIR/accuracy_error_vs_time.png, accuracy_convergence.png, accuracy_drift.png and,
+when the speed_* sweeps ran, accuracy_speed_options.png (IMAGE_DIR defaults to docs/images).
+Needs Debian's python3-matplotlib (hence /usr/bin/python3).
 """
 import argparse
 import csv
@@ -126,6 +127,47 @@ def drift(series_rows, out):
     fig.savefig(out, dpi=110)
 
 
+SPEED_PANELS = [("speed_bar", "Bar: period relative error"),
+                ("speed_spin", "Spinning cube: angular momentum drift"),
+                ("speed_collision", "Colliding spheres: momentum drift / sphere"),
+                ("speed_column", "Resting column: settled height error")]
+
+
+def speed_options(rows, out):
+    """Issue 15's speed options (the speed_* sweeps): error against wall time, one line per
+    setting through its resolutions, in one panel per case. Returns False if none ran."""
+    speed = [r for r in rows if r["experiment"].startswith("speed_") and r["status"] == "ok"]
+    if not speed:
+        return False
+    fig, axes = plt.subplots(2, 2, figsize=(12, 9))
+    colors = {"apic": "C0", "mls": "C1", "pic": "C2", "flip0.99": "C3"}
+    for ax, (exp, title) in zip(axes.flat, SPEED_PANELS):
+        lines = defaultdict(list)
+        for r in speed:
+            if r["experiment"] == exp:
+                lines[(r["transfer"], r["grid_precision"], r["simd"])].append(
+                    (float(r["h"]), float(r["wall_seconds"]), max(float(r["error"]), 1e-16)))
+        for (transfer, grid, simd), pts in sorted(lines.items()):
+            pts.sort(reverse=True)  # coarse to fine
+            ax.plot([p[1] for p in pts], [p[2] for p in pts],
+                    color=colors.get(transfer, "k"),
+                    linestyle="-" if grid == "double" else "--",
+                    marker="o" if simd == "true" else "s",
+                    fillstyle="full" if simd == "true" else "none",
+                    label="%s, %s grid, %s" % (transfer, grid,
+                                               "simd" if simd == "true" else "scalar"))
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("wall time of the substeps, s (one study run; ratios only)")
+        ax.set_ylabel("error")
+        ax.set_title(title + " (each line: coarse to fine h)", fontsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    return True
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("study_dir")
@@ -137,8 +179,10 @@ def main():
     error_vs_time(rows, os.path.join(args.output, "accuracy_error_vs_time.png"))
     convergence(rows, os.path.join(args.output, "accuracy_convergence.png"))
     drift(series_rows, os.path.join(args.output, "accuracy_drift.png"))
-    print("wrote accuracy_error_vs_time.png, accuracy_convergence.png, accuracy_drift.png in "
-          + args.output)
+    written = "accuracy_error_vs_time.png, accuracy_convergence.png, accuracy_drift.png"
+    if speed_options(rows, os.path.join(args.output, "accuracy_speed_options.png")):
+        written += ", accuracy_speed_options.png"
+    print("wrote " + written + " in " + args.output)
 
 
 if __name__ == "__main__":

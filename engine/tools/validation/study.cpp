@@ -144,7 +144,7 @@ const std::vector<Experiment>& experiments() {
         {"collision", "sphere_collision", over_transfers({}), over_refine({1})},
         {"compression", "uniaxial_compression", over_refine({1, 2}), {}},
         // Issue 15: mls against apic, the float grid against double, SIMD against scalar.
-        // Kept out of --quick (about 10 minutes together).
+        // Kept out of --quick: about 10 minutes together on a loaded 2-core machine.
         {"speed_bar", "bar_vibration", speed_options({1, 2}, {}, pic_flip), {}},
         {"speed_spin", "spinning_cube", speed_options({1, 2}, {}, pic_flip), {}},
         {"speed_collision", "sphere_collision", speed_options({1, 2}, {}, pic_flip), {}},
