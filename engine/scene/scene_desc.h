@@ -38,7 +38,7 @@ struct SimulationDesc {
   double damping = 0;                 ///< Grid velocity damping rate, 1/s (0: none).
   std::uint64_t seed = 1;             ///< Seed for particle sampling.
   int reorder_every = 8;              ///< Substeps between particle reorders by cell (0: never).
-  bool simd = false;                  ///< Float SIMD transfers (true); false: the scalar double path.
+  bool simd = true;                   ///< Float SIMD transfers (true, the default); false: the scalar double path.
 };
 
 /// Where particles go inside each grid cell.

@@ -4,9 +4,11 @@
 
 #include <omp.h>
 
+#include <cmath>
 #include <cstring>
 
 #include "engine/run/run.h"
+#include "support/float_bounds.h"
 #include "support/helpers.h"
 
 using namespace mpm;
@@ -49,13 +51,13 @@ std::size_t moved_particles(const Simulation& sim) {
 
 /// Runs a collision of an elastic and a plastic object through 4 frames (a few hundred
 /// substeps) with `threads` threads and the reorder stage every `reorder_every` substeps.
-std::unique_ptr<Simulation> run_collision(int threads, int reorder_every) {
+std::unique_ptr<Simulation> run_collision(int threads, int reorder_every, bool simd = false) {
   omp_set_num_threads(threads);
   // An elastic object of more than kParallelMinItems particles and a plastic one, so every
   // parallel loop really runs in parallel.
   const SceneDesc scene = test::scene_from(
       "simulation: {frame_dt: 0.01, cfl: 0.5, dt: 2.0e-4, reorder_every: " +
-      std::to_string(reorder_every) + "}\n"
+      std::to_string(reorder_every) + ", simd: " + (simd ? "true" : "false") + "}\n"
       "grid: {max: [1, 1, 1], dims: 40}\n"
       "objects:\n"
       "  - {name: jelly, mesh: " + test::cube_mesh() + ", scale: 0.3, offset: [0.32, 0.3, 0.5],\n"
@@ -77,10 +79,13 @@ std::unique_ptr<Simulation> run_collision(int threads, int reorder_every) {
 
 TEST_CASE("determinism: bit-identical state for 1 and 2 threads", "[physics]") {
   const int threads = omp_get_max_threads();
-  const std::uint64_t one = state_hash(*run_collision(1, 8));
-  const std::uint64_t two = state_hash(*run_collision(2, 8));
-  omp_set_num_threads(threads);
-  CHECK(one == two);
+  for (const bool simd : {false, true}) {
+    INFO((simd ? "SIMD transfers" : "scalar transfers"));
+    const std::uint64_t one = state_hash(*run_collision(1, 8, simd));
+    const std::uint64_t two = state_hash(*run_collision(2, 8, simd));
+    omp_set_num_threads(threads);
+    CHECK(one == two);
+  }
 }
 
 TEST_CASE("reorder: particles moved in memory by cell, the same motion by id to round-off",
@@ -88,26 +93,36 @@ TEST_CASE("reorder: particles moved in memory by cell, the same motion by id to 
   // Reordering changes which particle of a cell is added first to the grid sums (the sort
   // breaks ties by memory index), so it changes results at round-off, and only there.
   const int threads = omp_get_max_threads();
-  const auto never = run_collision(2, 0), often = run_collision(2, 1);
-  const std::uint64_t hash = state_hash(*often);
-  CHECK(state_hash(*run_collision(1, 1)) == hash);  // still the same for any thread count
-  omp_set_num_threads(threads);
-  CHECK(moved_particles(*never) == 0);
-  CHECK(moved_particles(*often) > never->particles().size() / 2);
-  // Each object keeps its range: the particles at [first, first + count) are its own.
-  for (const ObjectInfo& o : often->objects())
-    for (std::size_t q = o.first; q < o.first + o.count; ++q)
-      REQUIRE(often->particles().id[q] - o.first < o.count);
-  std::vector<std::size_t> at(often->particles().size());
-  for (std::size_t q = 0; q < at.size(); ++q) at[often->particles().id[q]] = q;
-  double dx = 0, dv = 0;
-  for (std::size_t q = 0; q < at.size(); ++q) {
-    dx = std::max(dx, (often->particles().x[at[q]] - never->particles().x[q]).norm());
-    dv = std::max(dv, (often->particles().v[at[q]] - never->particles().v[q]).norm());
+  for (const bool simd : {false, true}) {
+    INFO((simd ? "SIMD transfers" : "scalar transfers"));
+    const auto never = run_collision(2, 0, simd), often = run_collision(2, 1, simd);
+    const std::uint64_t hash = state_hash(*often);
+    CHECK(state_hash(*run_collision(1, 1, simd)) == hash);  // still the same for any thread count
+    omp_set_num_threads(threads);
+    CHECK(moved_particles(*never) == 0);
+    CHECK(moved_particles(*often) > never->particles().size() / 2);
+    // Each object keeps its range: the particles at [first, first + count) are its own.
+    for (const ObjectInfo& o : often->objects())
+      for (std::size_t q = o.first; q < o.first + o.count; ++q)
+        REQUIRE(often->particles().id[q] - o.first < o.count);
+    std::vector<std::size_t> at(often->particles().size());
+    for (std::size_t q = 0; q < at.size(); ++q) at[often->particles().id[q]] = q;
+    double dx = 0, dv = 0;
+    for (std::size_t q = 0; q < at.size(); ++q) {
+      dx = std::max(dx, (often->particles().x[at[q]] - never->particles().x[q]).norm());
+      dv = std::max(dv, (often->particles().v[at[q]] - never->particles().v[q]).norm());
+    }
+    INFO("largest difference by id: position " << dx << " m, velocity " << dv << " m/s");
+    // Scalar: the sums differ at double round-off; F and C are stored with epsilon kStoredEps,
+    // so what surfaces is a few storage roundings of F. Bound: one storage epsilon of a cell
+    // (h = 1/40), 3e-9 m; measured 3.3e-10 m after 4 frames of the float build.
+    // SIMD: the sums are float, so each run is within test::simd_position_bound of the exact
+    // transfers (support/float_bounds.h) and the two within twice that; speeds at most
+    // |v0| + g t = sqrt(2) + 9.81 * 0.04 (or the largest seen at the end, if more). 1.0e-6 m;
+    // measured 9.0e-9 m.
+    double speed = std::sqrt(2.0) + 9.81 * 0.04;
+    for (const auto* sim : {never.get(), often.get()})
+      for (const Vec3& v : sim->particles().v) speed = std::max(speed, v.norm());
+    CHECK(dx < (simd ? 2 * test::simd_position_bound(0.04, speed) : test::kStoredEps / 40));
   }
-  INFO("largest difference by id: position " << dx << " m, velocity " << dv << " m/s");
-  // The sums differ at double round-off; F and C are stored with epsilon kStoredEps, so what
-  // surfaces is a few storage roundings of F. Bound: one storage epsilon of a cell (h = 1/40),
-  // 3e-9 m; measured 3.3e-10 m after 4 frames of the float build.
-  CHECK(dx < test::kStoredEps / 40);
 }
