@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "engine/tools/validation/cases.h"
+#include "support/float_bounds.h"
 #include "support/helpers.h"
 
 using namespace mpm;
@@ -26,13 +27,20 @@ Outcome run(const std::string& name, std::vector<SceneOverride> overrides = {}) 
 TEST_CASE("validation: free fall lands exactly g dt t / 2 below the exact parabola",
           "[validation]") {
   // Symplectic Euler with fixed dt: x_n = x0 + v0 t + g t^2 / 2 + g dt t / 2 (t = n dt). The
-  // transfers reproduce a uniform velocity exactly, so only round-off separates the two.
-  for (double dt : {1e-3, 5e-4}) {
-    const Outcome o = run("free_fall", {{"simulation.dt", std::to_string(dt)}});
-    const Measure& m = o.measure("scheme_error");
-    INFO("dt " << dt << ": error " << m.value << " m, predicted " << m.exact << " m");
-    CHECK(std::abs(m.value - m.exact) < 1e-9 * (1 + 5.0));  // round-off on ~5 m of travel
-  }
+  // transfers reproduce a uniform velocity exactly, so only round-off separates the two: double
+  // round-off on the scalar path, float rounding of the SIMD transfers on the default path
+  // (tests/support/float_bounds.h; 1 s of flight at speeds up to |(2, 2 + 9.81)| < 12 m/s).
+  for (const char* simd : {"false", "true"})
+    for (double dt : {1e-3, 5e-4}) {
+      const Outcome o = run("free_fall", {{"simulation.dt", std::to_string(dt)},
+                                          {"simulation.simd", simd}});
+      const Measure& m = o.measure("scheme_error");
+      INFO("simd " << simd << ", dt " << dt << ": error " << m.value << " m, predicted " << m.exact
+                   << " m");
+      const double bound = std::string(simd) == "false" ? 1e-9 * (1 + 5.0)  // ~5 m of travel
+                                                        : test::simd_position_bound(1.0, 12.0);
+      CHECK(std::abs(m.value - m.exact) < bound);
+    }
 }
 
 TEST_CASE("validation: resting column settles to the exact stress and height", "[validation]") {
@@ -61,12 +69,17 @@ TEST_CASE("validation: the free-free bar's period is within 1 % at L / h = 20", 
 
 TEST_CASE("validation: colliding spheres keep momentum, dip in kinetic energy and separate",
           "[validation]") {
+  // No walls or gravity: every stage conserves momentum, so only round-off remains: of sums of
+  // ~4000 doubles on the scalar path (1500 substeps), of the SIMD transfers' float sums on the
+  // default path (float_bounds.h: per substep 120.5 u of sum m |v|, which is twice the
+  // momentum of one sphere, the drift's unit).
+  const Outcome scalar = run("sphere_collision", {{"simulation.simd", "false"}});
+  INFO("scalar momentum drift " << scalar.error);
+  CHECK(scalar.error < 1e-11);
   const Outcome o = run("sphere_collision");
   INFO("momentum drift " << o.error << ", kinetic min " << o.measure("kinetic_min_ratio").value
                          << ", end " << o.measure("kinetic_end_ratio").value);
-  // No walls or gravity: every stage conserves momentum, so only round-off remains
-  // (1500 substeps of sums of ~4000 doubles).
-  CHECK(o.error < 1e-11);
+  CHECK(o.error < test::simd_momentum_bound(o.substeps, 2.0));
   CHECK(o.measure("kinetic_min_ratio").value < 0.5);  // most kinetic energy stored in contact
   CHECK(o.measure("kinetic_end_ratio").value > 0.3);  // and much of it given back
   CHECK(o.measure("separating_speed").value > 0);     // moving apart at the end
