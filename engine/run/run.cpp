@@ -59,8 +59,8 @@ void check_inversion(const Simulation& sim, int frame, std::vector<char>& warned
                   "object '%s': %zu of %zu particles inverted (J = det F <= 0, smallest %.3g) "
                   "by frame %d: the body was crushed beyond what its material can hold, and "
                   "what follows is not physical (E is in Pa: too small? dt too large?)",
-                  sim.objects()[o].name.c_str(), count[o], sim.objects()[o].count, frame,
-                  static_cast<double>(smallest[o]));
+                  sim.objects()[o].name.c_str(), count[o], sim.objects()[o].count,
+                  static_cast<double>(smallest[o]), frame);
     warnings.emplace_back(buf);
     spdlog::warn("{}", warnings.back());
   }

@@ -3,6 +3,8 @@
 #include <omp.h>
 
 #include <catch2/catch.hpp>
+
+#include <regex>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -800,6 +802,12 @@ TEST_CASE("a run whose particles invert ends ok but warns, naming the object", "
       REQUIRE(r.warnings.size() == 1);
       CHECK_THAT(r.warnings[0], Catch::Contains("object 'soft'") &&
                                     Catch::Contains("particles inverted (J = det F <= 0"));
+      // The smallest J is a non-positive number and the frame a frame of this run.
+      std::smatch m;
+      REQUIRE(std::regex_search(r.warnings[0], m, std::regex("smallest (\\S+)\\) by frame (\\d+):")));
+      CHECK(std::stod(m[1].str()) <= 0);
+      CHECK(std::stoi(m[2].str()) >= 1);
+      CHECK(std::stoi(m[2].str()) <= r.frames_done);
       REQUIRE(report["warnings"].IsSequence());
       CHECK(report["warnings"][0].as<std::string>() == r.warnings[0]);
     } else {
