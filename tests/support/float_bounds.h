@@ -39,6 +39,13 @@ inline double simd_position_bound(double t, double speed) {
   return t * kSubstepRel * kFloatU * speed;
 }
 
+/// APIC's relative angular momentum drift on the SIMD path after `substeps`: the scalar
+/// bound (test::apic_bound, storage rounding of C) plus the float transfers' kSubstepRel u of
+/// sum m |r x v| per substep, which for a body spinning as a whole is its angular momentum.
+inline double simd_apic_bound(std::size_t substeps, double stored_bound) {
+  return stored_bound + static_cast<double>(substeps) * kSubstepRel * kFloatU;
+}
+
 /// Velocity error of one substep (the error a particle's speed may show at any time).
 inline double simd_velocity_bound(double speed) { return kSubstepRel * kFloatU * speed; }
 

@@ -35,7 +35,8 @@ TEST_CASE("quick study: convergence order, angular momentum, collision momentum"
   CHECK(order > 1.7);
   for (std::size_t i = 1; i < error.size(); ++i) CHECK(error[i] < error[i - 1]);
   CHECK(apic >= 0);
-  CHECK(apic < mpm::test::apic_bound(apic_substeps));
+  // The study runs the default SIMD transfers: C's storage rounding plus the float transfers'.
+  CHECK(apic < mpm::test::simd_apic_bound(apic_substeps, mpm::test::apic_bound(apic_substeps)));
   CHECK(pic > 0.5);
   CHECK(momentum >= 0);
   // The study runs the default (SIMD) transfers: float sums, bounded per substep by 120.5 u of
