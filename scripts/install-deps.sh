@@ -8,6 +8,7 @@ packages=(
   libeigen3-dev libyaml-cpp-dev libassimp-dev libhdf5-dev
   libspdlog-dev libfmt-dev libpng-dev catch2
   libhwy-dev                         # Highway: the SIMD transfers
+  libopenvdb-dev libboost-iostreams-dev python3-openvdb  # OpenVDB (its CMake module needs Boost iostreams); Python module for tests
   clang-14 libclang-rt-14-dev libomp-14-dev llvm-14  # fuzzing: libFuzzer, sanitizers, symbolizer
   paraview python3-paraview          # the frames.xmf test opens a run with ParaView's reader
   xvfb xauth libgl1-mesa-dri         # xvfb-run pvpython: ParaView screenshots without a display
