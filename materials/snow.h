@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "engine/core/reduce.h"
 #include "materials/corotated.h"
 #include "materials/svd.h"
 
@@ -96,9 +97,8 @@ class SnowGroup final : public MaterialGroup {
   }
 
   Real elastic_energy(std::span<const StoredMat3> F, Real volume0) const override {
-    Real e = 0;
-    for (std::size_t p = 0; p < F.size(); ++p) e += hardened(p).energy(to_real(F[p]));
-    return volume0 * e;
+    return volume0 *
+           sum_chunks(F.size(), [&](std::size_t p) { return hardened(p).energy(to_real(F[p])); });
   }
 
   std::span<Real> state() override { return Jp_; }

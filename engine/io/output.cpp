@@ -393,9 +393,13 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
   y << YAML::Key << "wall_seconds" << YAML::Value << r.wall_seconds;
   y << YAML::Key << "loop_seconds" << YAML::Value << r.loop_seconds;
   y << YAML::Key << "output_seconds" << YAML::Value << seconds_;
+  y << YAML::Key << "check_seconds" << YAML::Value << r.check_seconds;
+  y << YAML::Key << "observer_seconds" << YAML::Value << r.observer_seconds;
   const double steps = static_cast<double>(n) * sim.substeps();
   y << YAML::Key << "particle_steps_per_second" << YAML::Value
     << (r.loop_seconds > 0 ? steps / r.loop_seconds : 0.0);
+  y << YAML::Key << "run_particle_steps_per_second" << YAML::Value
+    << (r.wall_seconds > 0 ? steps / r.wall_seconds : 0.0);
   y << YAML::Key << "clamped_particles" << YAML::Value << sim.clamped_particles();
   y << YAML::Key << "stages" << YAML::Value << YAML::BeginMap;
   for (const auto& [name, seconds] : sim.stage_seconds())

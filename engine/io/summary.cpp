@@ -1,5 +1,7 @@
 #include "engine/io/summary.h"
 
+#include "engine/core/reduce.h"
+
 #include "engine/io/atomic_file.h"
 
 #include <algorithm>
@@ -35,46 +37,69 @@ FrameSummary summarize(const Simulation& sim, int frame) {
     ObjectSummary s;
     s.name = o.name;
     s.particles = o.count;
-    // Serial sums in particle order: the same state gives the same numbers on any thread count.
-    double mass = 0, speed_sum = 0, max_speed = 0, kinetic = 0, gravitational = 0;
-    Vec3 mx = Vec3::Zero(), x_sum = Vec3::Zero(), momentum = Vec3::Zero();
-    Vec3 angular = Vec3::Zero();
-    Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
-    Vec3 hi = -lo;
-    for (std::size_t q = o.first; q < end; ++q) {
-      const double m = p.mass(q);
-      const Vec3& x = p.x[q];
-      const Vec3& v = p.v[q];
-      const Vec3 r = x - origin;
-      const double speed = v.norm();
-      mass += m;
-      mx += m * x;
-      x_sum += x;
-      lo = lo.cwiseMin(x);
-      hi = hi.cwiseMax(x);
-      speed_sum += speed;
-      max_speed = std::max(max_speed, speed);
-      kinetic += 0.5 * m * v.squaredNorm();
-      gravitational -= m * g.dot(r);
-      momentum += m * v;
-      angular += m * r.cross(v);
-    }
-    const std::size_t n = end > o.first ? end - o.first : 0;
-    if (mass > 0) {
-      s.centroid = mx / mass;
+    // Sums over fixed chunks, combined in chunk order: the same numbers on any thread count.
+    struct Sums {
+      double mass = 0, speed_sum = 0, max_speed = 0, kinetic = 0, gravitational = 0;
+      Vec3 mx = Vec3::Zero(), x_sum = Vec3::Zero(), momentum = Vec3::Zero();
+      Vec3 angular = Vec3::Zero();
+      Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
+      Vec3 hi = Vec3::Constant(-std::numeric_limits<double>::infinity());
+    };
+    const std::size_t first = std::min(o.first, end);
+    const Sums t = reduce_chunks(
+        end - first, Sums{},
+        [&](std::size_t a, std::size_t b) {
+          Sums c;
+          for (std::size_t q = first + a; q < first + b; ++q) {
+            const double m = p.mass(q);
+            const Vec3& x = p.x[q];
+            const Vec3& v = p.v[q];
+            const Vec3 r = x - origin;
+            const double speed = v.norm();
+            c.mass += m;
+            c.mx += m * x;
+            c.x_sum += x;
+            c.lo = c.lo.cwiseMin(x);
+            c.hi = c.hi.cwiseMax(x);
+            c.speed_sum += speed;
+            c.max_speed = std::max(c.max_speed, speed);
+            c.kinetic += 0.5 * m * v.squaredNorm();
+            c.gravitational -= m * g.dot(r);
+            c.momentum += m * v;
+            c.angular += m * r.cross(v);
+          }
+          return c;
+        },
+        [](Sums a, const Sums& b) {
+          a.mass += b.mass;
+          a.mx += b.mx;
+          a.x_sum += b.x_sum;
+          a.lo = a.lo.cwiseMin(b.lo);
+          a.hi = a.hi.cwiseMax(b.hi);
+          a.speed_sum += b.speed_sum;
+          a.max_speed = std::max(a.max_speed, b.max_speed);
+          a.kinetic += b.kinetic;
+          a.gravitational += b.gravitational;
+          a.momentum += b.momentum;
+          a.angular += b.angular;
+          return a;
+        });
+    const std::size_t n = end - first;
+    if (t.mass > 0) {
+      s.centroid = t.mx / t.mass;
     } else if (n > 0) {
-      s.centroid = x_sum / static_cast<double>(n);
+      s.centroid = t.x_sum / static_cast<double>(n);
     }
     if (n > 0) {
-      s.bbox_min = lo;
-      s.bbox_max = hi;
-      s.mean_speed = speed_sum / static_cast<double>(n);
+      s.bbox_min = t.lo;
+      s.bbox_max = t.hi;
+      s.mean_speed = t.speed_sum / static_cast<double>(n);
     }
-    s.max_speed = max_speed;
-    s.kinetic_energy = kinetic;
-    s.gravitational_energy = gravitational;
-    s.linear_momentum = momentum;
-    s.angular_momentum = angular;
+    s.max_speed = t.max_speed;
+    s.kinetic_energy = t.kinetic;
+    s.gravitational_energy = t.gravitational;
+    s.linear_momentum = t.momentum;
+    s.angular_momentum = t.angular;
     // One material range per object in practice; any range lying inside the object counts.
     double elastic = 0;
     for (const MaterialRange& r : sim.materials()) {

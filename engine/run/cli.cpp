@@ -443,10 +443,11 @@ int cmd_run(const Args& args) {
                       resumed_frame + 1);
 
   const double steps = static_cast<double>(sim->particles().size()) * sim->substeps();
-  std::printf("%s: %s, %zu particles, %d frames, %zu substeps in %.1f s (%.2fM particle-steps/s)"
-              "; %s%s\n",
+  std::printf("%s: %s, %zu particles, %d frames, %zu substeps in %.1f s (%.2fM particle-steps/s; "
+              "%.2fM in the substep loop); %s%s\n",
               args.scene.c_str(), r.status.c_str(), sim->particles().size(), r.frames_done,
               sim->substeps(), r.wall_seconds,
+              r.wall_seconds > 0 ? steps / r.wall_seconds / 1e6 : 0.0,
               r.loop_seconds > 0 ? steps / r.loop_seconds / 1e6 : 0.0, written.c_str(),
               r.warnings.empty() ? ""
               : args.command == "run" ? " (with warnings: see the log and report.yaml)"

@@ -1,5 +1,7 @@
 #include "engine/run/run.h"
 
+#include "engine/core/reduce.h"
+
 #include <chrono>
 #include <cmath>
 #include <algorithm>
@@ -40,27 +42,38 @@ std::optional<Instability> diagnose(const Simulation& sim, Real dt) {
 void check_inversion(const Simulation& sim, int frame, std::vector<char>& warned,
                      std::vector<std::string>& warnings) {
   const Particles& p = sim.particles();
-  const std::size_t objects = sim.objects().size();
-  std::vector<std::size_t> count(objects, 0);
-  std::vector<Real> smallest(objects, std::numeric_limits<Real>::infinity());
-  for (std::size_t q = 0; q < p.size(); ++q) {
-    const std::uint32_t o = p.object[q];
+  struct Inverted {
+    std::size_t count = 0;
+    Real smallest = std::numeric_limits<Real>::infinity();
+  };
+  for (std::size_t o = 0; o < sim.objects().size(); ++o) {
     if (warned[o]) continue;
-    const Real J = to_real(p.F[q]).determinant();
-    if (!(J <= 0)) continue;
-    ++count[o];
-    smallest[o] = std::min(smallest[o], J);
-  }
-  for (std::size_t o = 0; o < objects; ++o) {
-    if (count[o] == 0) continue;
+    const ObjectInfo& info = sim.objects()[o];
+    const std::size_t n = std::min(info.count, p.size() - std::min(info.first, p.size()));
+    const Inverted inv = reduce_chunks(
+        n, Inverted{},
+        [&](std::size_t first, std::size_t last) {
+          Inverted c;
+          for (std::size_t q = info.first + first; q < info.first + last; ++q) {
+            const Real J = to_real(p.F[q]).determinant();
+            if (!(J <= 0)) continue;
+            ++c.count;
+            c.smallest = std::min(c.smallest, J);
+          }
+          return c;
+        },
+        [](Inverted a, Inverted b) {
+          return Inverted{a.count + b.count, std::min(a.smallest, b.smallest)};
+        });
+    if (inv.count == 0) continue;
     warned[o] = 1;
     char buf[400];
     std::snprintf(buf, sizeof buf,
                   "object '%s': %zu of %zu particles inverted (J = det F <= 0, smallest %.3g) "
                   "by frame %d: the body was crushed beyond what its material can hold, and "
                   "what follows is not physical (E is in Pa: too small? dt too large?)",
-                  sim.objects()[o].name.c_str(), count[o], sim.objects()[o].count,
-                  static_cast<double>(smallest[o]), frame);
+                  info.name.c_str(), inv.count, info.count,
+                  static_cast<double>(inv.smallest), frame);
     warnings.emplace_back(buf);
     spdlog::warn("{}", warnings.back());
   }
@@ -94,8 +107,13 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
     result.message = why.cause + buf;
     result.instability = why;
   };
+  auto seconds_since = [](clock::time_point t0) {
+    return std::chrono::duration<double>(clock::now() - t0).count();
+  };
   try {
+    auto t0 = clock::now();
     for (Observer* o : observers) o->on_start(sim, frames);
+    result.observer_seconds += seconds_since(t0);
     result.frames_done = first_frame - 1;
     for (int f = first_frame; f <= frames && result.status == "ok"; ++f) {
       const Real frame_end = f * frame_dt;
@@ -130,11 +148,16 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
         steps.dt_min = std::min(steps.dt_min, dt);
         steps.dt_max = std::max(steps.dt_max, dt);
         --remaining_steps;
-        if (auto why = diagnose(sim, dt)) {
+        t0 = clock::now();
+        auto why = diagnose(sim, dt);
+        result.check_seconds += seconds_since(t0);
+        if (why) {
           fail(*why, f);
           break;
         }
+        t0 = clock::now();
         for (Observer* o : observers) o->on_substep(sim, f);
+        result.observer_seconds += seconds_since(t0);
         if (stop && stop->load()) {
           result.status = "interrupted";
           result.message = "stopped by a signal at substep " + std::to_string(sim.substeps()) +
@@ -146,6 +169,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       result.steps.push_back(steps);
       if (result.status != "ok") break;
       // Energy may only grow by the work moving walls do on the bodies.
+      t0 = clock::now();
       const Real energy = sim.total_energy() - sim.wall_work();
       result.energy_max = std::max(result.energy_max, energy);
       // The allowance scales with the energy in play: the start's, or what walls put in.
@@ -160,9 +184,12 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       }
       check_inversion(sim, f, inversion_warned, result.warnings);
       suggested_dt = sim.cfl_bound(cfl);
+      result.check_seconds += seconds_since(t0);
       sim.set_time(frame_end);
       result.frames_done = f;
+      t0 = clock::now();
       for (Observer* o : observers) o->on_frame(sim, f);
+      result.observer_seconds += seconds_since(t0);
     }
   } catch (const std::exception& e) {
     result.status = "error";

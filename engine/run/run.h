@@ -38,6 +38,8 @@ struct RunResult {
   int frames_done = 0;        ///< Frames completed after the initial state.
   double wall_seconds = 0;    ///< Whole run including output.
   double loop_seconds = 0;    ///< The substep loop: each substep and its dt bound.
+  double check_seconds = 0;   ///< Per-substep diagnosis and per-frame checks (energy, J, dt).
+  double observer_seconds = 0;  ///< In observers: output, summaries, progress.
   Real dt_min = 0;            ///< Smallest substep taken, s.
   Real dt_max = 0;            ///< Largest substep taken, s.
   /// What went wrong without stopping the run (inverted particles), one line each.

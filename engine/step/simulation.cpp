@@ -1,5 +1,7 @@
 #include "engine/step/simulation.h"
 
+#include "engine/core/reduce.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -267,17 +269,16 @@ Real Simulation::max_speed() const {
 }
 
 Real Simulation::kinetic_energy() const {
-  Real e = 0;
-  for (std::size_t q = 0; q < particles_.size(); ++q)
-    e += 0.5 * particles_.mass(q) * particles_.v[q].squaredNorm();
-  return e;
+  return sum_chunks(particles_.size(), [&](std::size_t q) {
+    return 0.5 * particles_.mass(q) * particles_.v[q].squaredNorm();
+  });
 }
 
 Real Simulation::total_energy() const {
-  Real gravitational = 0;
   const Vec3 g = scene_.simulation.gravity;
-  for (std::size_t q = 0; q < particles_.size(); ++q)
-    gravitational -= particles_.mass(q) * g.dot(particles_.x[q] - grid_.origin);
+  const Real gravitational = sum_chunks(particles_.size(), [&](std::size_t q) {
+    return -particles_.mass(q) * g.dot(particles_.x[q] - grid_.origin);
+  });
   return kinetic_energy() + elastic_energy() + gravitational;
 }
 

@@ -42,5 +42,14 @@ TEST_CASE("report: the adaptive dt's wave-speed bound is a stage, and the stages
   CHECK(sum >= 0.95 * loop);
   const double steps = report["particles"].as<double>() * report["substeps"].as<double>();
   CHECK(report["particle_steps_per_second"].as<double>() == Approx(steps / loop).epsilon(1e-6));
+  // The whole run is the loop, the checks between substeps and frames, and the observers.
+  const double wall = report["wall_seconds"].as<double>();
+  const double parts = loop + report["check_seconds"].as<double>() +
+                       report["observer_seconds"].as<double>();
+  INFO("wall " << wall << " s, loop + checks + observers " << parts << " s");
+  CHECK(parts <= wall);
+  CHECK(parts >= 0.95 * wall);
+  CHECK(report["observer_seconds"].as<double>() >= report["output_seconds"].as<double>());
+  CHECK(report["run_particle_steps_per_second"].as<double>() == Approx(steps / wall).epsilon(1e-6));
   CHECK(report["substeps"].as<int>() >= 20);
 }

@@ -817,3 +817,52 @@ TEST_CASE("a run whose particles invert ends ok but warns, naming the object", "
     }
   }
 }
+
+TEST_CASE("summaries and energies are bit-identical for 1 and 2 threads",
+          "[summary]") {
+  // The per-frame sums run in parallel over fixed chunks (engine/core/reduce.h), combined in
+  // chunk order: the thread count must not change a bit. A cube of more than
+  // kParallelMinItems particles, deformed by a few substeps of a fall onto a floor.
+  const SceneDesc scene = test::scene_from(
+      "simulation: {frame_dt: 0.01, dt: 5.0e-4}\n"
+      "grid: {max: [1, 1, 1], dims: 32}\n"
+      "objects:\n"
+      "  - {name: jelly, mesh: " + test::cube_mesh() + ", scale: 0.4, offset: [0.5, 0.35, 0.5],\n"
+      "     velocity: [0.5, -2, 0.3], density: 1000, material: corotated, E: 1.0e5, nu: 0.3}\n"
+      "  - {name: snow, mesh: " + test::cube_mesh() + ", scale: 0.2, offset: [0.5, 0.75, 0.5],\n"
+      "     velocity: [0, -2, 0], density: 400, material: snow, E: 1.0e5, nu: 0.2}\n"
+      "walls:\n"
+      "  - {plane: {point: [0, 0.14, 0], normal: [0, 1, 0]}, boundary: sticky}\n");
+  auto sim = Simulation::create(scene, builtin_registry());
+  REQUIRE(sim->objects()[0].count > 2 * static_cast<std::size_t>(kParallelMinItems));
+  const RunResult r = run_frames(*sim, 3, scene.simulation.frame_dt, {});
+  REQUIRE(r.status == "ok");
+  const int threads = omp_get_max_threads();
+  auto measure = [&](int n) {
+    omp_set_num_threads(n);
+    return std::make_tuple(summarize(*sim, 3), sim->total_energy(), sim->elastic_energy(),
+                           sim->kinetic_energy());
+  };
+  const auto [one, e1, el1, k1] = measure(1);
+  const auto [two, e2, el2, k2] = measure(2);
+  omp_set_num_threads(threads);
+  CHECK(std::memcmp(&e1, &e2, sizeof e1) == 0);
+  CHECK(std::memcmp(&el1, &el2, sizeof el1) == 0);
+  CHECK(std::memcmp(&k1, &k2, sizeof k1) == 0);
+  CHECK(el1 > 0);  // deformed: the check sees real numbers
+  REQUIRE(one.objects.size() == two.objects.size());
+  for (std::size_t k = 0; k < one.objects.size(); ++k) {
+    const ObjectSummary &a = one.objects[k], &b = two.objects[k];
+    INFO("object " << a.name);
+    CHECK(a.centroid == b.centroid);
+    CHECK(a.bbox_min == b.bbox_min);
+    CHECK(a.bbox_max == b.bbox_max);
+    CHECK(a.mean_speed == b.mean_speed);
+    CHECK(a.max_speed == b.max_speed);
+    CHECK(a.kinetic_energy == b.kinetic_energy);
+    CHECK(a.elastic_energy == b.elastic_energy);
+    CHECK(a.gravitational_energy == b.gravitational_energy);
+    CHECK(a.linear_momentum == b.linear_momentum);
+    CHECK(a.angular_momentum == b.angular_momentum);
+  }
+}
