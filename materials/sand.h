@@ -61,15 +61,14 @@ struct DruckerPragerSand {
     return mu * e.squaredNorm() + Real(0.5) * lambda * e.sum() * e.sum();
   }
 
-  /// Kirchhoff stress tau = U (2 mu eps + lambda tr(eps) I) U^T, Pa.
+  /// Kirchhoff stress tau = U (2 mu eps + lambda tr(eps) I) U^T, Pa. U and Sigma^2 come from
+  /// the eigen-decomposition of F F^T = U Sigma^2 U^T, so no rotation V is needed.
   Mat3 kirchhoff(const Mat3& F) const {
-    // F = R S with S = V Sigma V^T (Sigma signed as in svd_rv), so U = R V.
-    Mat3 R, S, V;
-    Vec3 s;
-    polar_decomposition(F, R, S);
-    symmetric_eigen(S, s, V);
-    const Mat3 U = R * V;
-    return U * principal_kirchhoff(hencky(s)).asDiagonal() * U.transpose();
+    Mat3 U;
+    Vec3 s2;
+    symmetric_eigen(F * F.transpose(), s2, U);
+    const Vec3 eps = Real(0.5) * s2.cwiseMax(kSigmaMin * kSigmaMin).array().log().matrix();
+    return U * principal_kirchhoff(eps).asDiagonal() * U.transpose();
   }
 
   /// P-wave speed sqrt((lambda + 2 mu) max(1, J) / rho0), m/s: the engine's convention
@@ -137,13 +136,27 @@ class SandGroup final : public MaterialGroup {
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
     for (std::ptrdiff_t p = 0; p < n; ++p) {
       const Mat3 Fe = to_real(F[p]);
-      Mat3 U, V;
+      // F^T F = V Sigma^2 V^T. For det F > 0 and sigma above the floor, U = F V Sigma^-1, so
+      // the projected U exp(H) V^T is F V diag(exp(H) / sigma) V^T: no U needed.
+      Mat3 V;
+      Vec3 s2;
+      symmetric_eigen(Fe.transpose() * Fe, s2, V);
+      const Real floor2 = DruckerPragerSand::kSigmaMin * DruckerPragerSand::kSigmaMin;
+      if (Fe.determinant() > 0 && s2.minCoeff() > floor2) {
+        const Vec3 s = s2.cwiseSqrt();
+        Vec3 e = s.array().log().matrix();
+        if (model_.project(e, vc_[p]))
+          F[p] = to_stored(Fe * V * (e.array().exp() / s.array()).matrix().asDiagonal() *
+                           V.transpose());
+        continue;
+      }
+      // Inverted or crushed: the rotation-variant SVD, rebuilt with positive singular values.
+      Mat3 U;
       Vec3 s;
       svd_rv(Fe, U, s, V);
       Vec3 e = DruckerPragerSand::hencky(s);
-      // An inverted particle (sigma_3 < 0) is rebuilt with positive singular values.
-      if (model_.project(e, vc_[p]) || s(2) < 0)
-        F[p] = to_stored(U * e.array().exp().matrix().asDiagonal() * V.transpose());
+      model_.project(e, vc_[p]);
+      F[p] = to_stored(U * e.array().exp().matrix().asDiagonal() * V.transpose());
     }
   }
 
