@@ -48,7 +48,17 @@ def column_results(run_dir, h):
         L0, centre = (hi - lo) / 2, (hi + lo) / 2
         H0 = a0[:, 1].max() + gap - floor
         runout = ((a1[:, 0].max() + gap - centre) + (centre - a1[:, 0].min() + gap)) / 2
-        out.append((H0 / L0, (runout - L0) / L0, (a1[:, 1].max() + gap - floor) / L0))
+        # Flank slope: the surface height (highest particle per h-wide bin of |x - centre|,
+        # both sides folded) fitted by a line where it is between 20 % and 80 % of the top.
+        r = np.abs(a1[:, 0] - centre)
+        bins = np.floor(r / h).astype(int)
+        top = np.full(bins.max() + 1, np.nan)
+        for b, y in zip(bins, a1[:, 1] + gap - floor):
+            top[b] = y if np.isnan(top[b]) else max(top[b], y)
+        rb = (np.arange(len(top)) + 0.5) * h
+        ok = ~np.isnan(top) & (top > 0.2 * np.nanmax(top)) & (top < 0.8 * np.nanmax(top))
+        slope = np.degrees(np.arctan(-np.polyfit(rb[ok], top[ok], 1)[0])) if ok.sum() >= 3 else np.nan
+        out.append((H0 / L0, (runout - L0) / L0, (a1[:, 1].max() + gap - floor) / L0, slope))
     return sorted(out)
 
 
@@ -69,9 +79,10 @@ def collapse(out_png, runs):
     ax2.plot(a[a > 1.15], a[a > 1.15] ** 0.4, "k--", label="Lube et al. 2005: a^(2/5)")
     for label, h, run_dir in runs:
         res = column_results(run_dir, h)
-        for ai, r, hh in res:
+        for ai, r, hh, slope in res:
             print(f"{label}: a = {ai:.2f}  runout {r:.3f} (Lube {float(lube_runout(ai)):.3f})"
-                  f"  height {hh:.3f} (Lube {float(lube_height(ai)):.3f})")
+                  f"  height {hh:.3f} (Lube {float(lube_height(ai)):.3f})"
+                  f"  flank slope {slope:.1f} deg")
         A = [x[0] for x in res]
         ax1.plot(A, [x[1] for x in res], "o-", label=label)
         ax2.plot(A, [x[2] for x in res], "o-", label=label)
