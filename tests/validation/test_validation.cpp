@@ -204,3 +204,19 @@ TEST_CASE("validation: the dam break's surge front follows Martin & Moyce 1952",
   // release of their column is not instantaneous: 20 % bounds the comparison.
   CHECK(o.error < 0.2);
 }
+
+TEST_CASE("validation: a slumped sand column's flanks stand at the friction angle",
+          "[validation][sand]") {
+  // A column of a = 2 fails quasi-statically: its deposit's flanks are at the angle of
+  // repose, the friction angle of a cohesionless Drucker-Prager material. The fitted flank is
+  // about 4 h long, and each bin's surface (its highest particle) is known to a particle
+  // spacing, h / 2: opposite errors at its ends tilt the line by up to atan(1 / 8) = 7 degrees.
+  for (double phi : {30.0, 20.0}) {
+    const Outcome o =
+        run("sand_slope", {{"objects[0].friction_angle", std::to_string(phi)}});
+    const Measure& m = o.measure("slope_a2");
+    INFO("friction angle " << phi << ": flank slope " << m.value << " degrees");
+    CHECK(m.exact == phi);
+    CHECK(std::abs(m.value - phi) < 7);
+  }
+}

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <numbers>
 #include <stdexcept>
 
 #include "engine/step/kernels.h"
@@ -652,6 +653,8 @@ class ColumnCollapse final : public Probe {
       const std::string name = sim.objects()[o].name;
       out.measures.push_back({"runout_" + name, runout, lube_runout(a), ""});
       out.measures.push_back({"height_" + name, height, lube_height(a), ""});
+      out.measures.push_back({"slope_" + name, flank_slope(sim, o, c),
+                              param(sim.scene().objects.at(o), "friction_angle"), "deg"});
       rel.push_back((runout - lube_runout(a)) / lube_runout(a));
     }
     out.error_name = "runout RMS relative error against Lube et al. 2005";
@@ -665,6 +668,30 @@ class ColumnCollapse final : public Probe {
   struct Column {
     double half_width = 0, height = 0, centre = 0, floor = 0, gap_x = 0, gap_y = 0;
   };
+  /// Slope (degrees) of the deposit's flank: the surface height (highest particle per h-wide
+  /// bin of |x - centre|, both sides folded) fitted by a line where it is between 20 % and
+  /// 80 % of the top; NaN with fewer than three such bins.
+  static double flank_slope(const Simulation& sim, std::size_t o, const Column& c) {
+    const ObjectInfo& info = sim.objects()[o];
+    const double h = sim.scene().grid.spacing().x();
+    std::vector<double> top;
+    for (std::size_t q = info.first; q < info.first + info.count; ++q) {
+      const Vec3& x = sim.particles().x[q];
+      const std::size_t b = static_cast<std::size_t>(std::abs(x.x() - c.centre) / h);
+      if (b >= top.size()) top.resize(b + 1, 0);
+      top[b] = std::max(top[b], x.y() + c.gap_y - c.floor);
+    }
+    const double peak = *std::max_element(top.begin(), top.end());
+    double n = 0, sr = 0, sy = 0, srr = 0, sry = 0;
+    for (std::size_t b = 0; b < top.size(); ++b) {
+      if (!(top[b] > 0.2 * peak && top[b] < 0.8 * peak)) continue;
+      const double r = (b + 0.5) * h;
+      n += 1, sr += r, sy += top[b], srr += r * r, sry += r * top[b];
+    }
+    if (n < 3) return std::nan("");
+    const double slope = (n * sry - sr * sy) / (n * srr - sr * sr);
+    return -std::atan(slope) * 180 / std::numbers::pi;
+  }
   static Extent extent(const Simulation& sim, std::size_t o) {
     const ObjectInfo& info = sim.objects()[o];
     Extent e;
@@ -710,6 +737,8 @@ const std::vector<Case>& cases() {
       {"dam_break", "water column collapse: surge front against Martin & Moyce 1952",
        make<DamBreak>},
       {"column_collapse", "sand columns, a = 0.5 to 8: runout and height against Lube et al. 2005",
+       make<ColumnCollapse>},
+      {"sand_slope", "a sand column (a = 2) slumps: its deposit's flank slope against phi",
        make<ColumnCollapse>},
   };
   return all;
