@@ -236,7 +236,8 @@ inline Failures check_pressure_only(const MaterialInfo& m) {
     const Mat3 dev = tau - tau.trace() / 3 * Mat3::Identity();
     // J of the stored F and of the stored J^(1/3) I differ by a few eps_stored, which moves
     // the pressure by about K (gamma + 1) 3 eps_stored.
-    const double tol = (1e-9 + kStorageStress) * stress_scale(m) * (1 + tau.norm() / stress_scale(m));
+    const double tol =
+        (1e-9 + kStorageStress) * stress_scale(m) * (1 + tau.norm() / stress_scale(m));
     std::ostringstream s;
     if (const double d = dev.norm(); !(d <= tol))
       s << "|dev tau(F)| = " << d << " > " << tol << "\n";

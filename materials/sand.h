@@ -25,9 +25,9 @@ namespace mpm::materials {
 
 /// St. Venant-Kirchhoff on the Hencky strain, and its Drucker-Prager return mapping.
 struct DruckerPragerSand {
-  Real mu = 0;       ///< Shear modulus, Pa.
-  Real lambda = 0;   ///< First Lame parameter, Pa.
-  Real alpha = 0;    ///< Cone slope sqrt(2/3) 2 sin(phi) / (3 - sin(phi)), dimensionless.
+  Real mu = 0;          ///< Shear modulus, Pa.
+  Real lambda = 0;      ///< First Lame parameter, Pa.
+  Real alpha = 0;       ///< Cone slope sqrt(2/3) 2 sin(phi) / (3 - sin(phi)), dimensionless.
   Real apex_trace = 0;  ///< tr(eps) of the cone's apex: 3 c cot(phi) / (3 lambda + 2 mu).
   bool volume_correction = true;  ///< Klar's volume correction (section 7.3.1) on or off.
 
@@ -129,7 +129,9 @@ class SandGroup final : public MaterialGroup {
       out[p] = to_stored(-volume0 * model_.kirchhoff(to_real(F[p])));
   }
 
-  bool has_plasticity() const override { return true; }
+  bool has_plasticity() const override {
+    return true;
+  }
 
   void apply_plasticity(std::span<StoredMat3> F) override {
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
@@ -174,14 +176,22 @@ class SandGroup final : public MaterialGroup {
     return volume0 * e;
   }
 
-  std::span<Real> state() override { return vc_; }
+  std::span<Real> state() override {
+    return vc_;
+  }
 
   /// Volume correction of each particle: the log of the plastic volume gained (>= 0).
-  const std::vector<Real>& volume_correction() const { return vc_; }
+  const std::vector<Real>& volume_correction() const {
+    return vc_;
+  }
   /// Mutable volume correction, for tests.
-  std::vector<Real>& volume_correction() { return vc_; }
+  std::vector<Real>& volume_correction() {
+    return vc_;
+  }
   /// The model.
-  const DruckerPragerSand& model() const { return model_; }
+  const DruckerPragerSand& model() const {
+    return model_;
+  }
 
  private:
   DruckerPragerSand model_;

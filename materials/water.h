@@ -76,7 +76,9 @@ class WaterGroup final : public MaterialGroup {
       out[p] = to_stored(-volume0 * model_.kirchhoff(to_real(F[p])));
   }
 
-  bool has_plasticity() const override { return true; }
+  bool has_plasticity() const override {
+    return true;
+  }
 
   void apply_plasticity(std::span<StoredMat3> F) override {
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
@@ -99,7 +101,9 @@ class WaterGroup final : public MaterialGroup {
   }
 
   /// The model.
-  const TaitWater& model() const { return model_; }
+  const TaitWater& model() const {
+    return model_;
+  }
 
  private:
   TaitWater model_;

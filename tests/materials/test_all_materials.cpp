@@ -1,9 +1,8 @@
 // Checks every registered material gets for free, the example plugin's included: write a
 // material, register it, and these run on it with no new test code. The checks themselves are
 // materials/material_checks.h, which the installed `mpm_material_check` also runs on plugins.
-#include <catch2/catch.hpp>
-
 #include <algorithm>
+#include <catch2/catch.hpp>
 #include <cstdio>
 
 #include "materials/material_checks.h"

@@ -2,7 +2,6 @@
 // water (Tait): the return mapping's three cases, the friction angle, cohesion and volume
 // correction; the Tait pressure, sound speed and the projection F = J^(1/3) I.
 #include <catch2/catch.hpp>
-
 #include <numbers>
 
 #include "materials/sand.h"

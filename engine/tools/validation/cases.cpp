@@ -616,10 +616,14 @@ class DamBreak final : public Probe {
 /// Runout law of Lube, Huppert, Sparks, Freundt 2005 (Phys. Rev. E 72, 041301) for
 /// two-dimensional collapses: (L - L0) / L0 = 1.2 a for a < 1.8 and 1.9 a^(2/3) for a > 2.8
 /// (between, the nearer regime: 1.2 a up to a = 2.3).
-double lube_runout(double a) { return a <= 2.3 ? 1.2 * a : 1.9 * std::pow(a, 2.0 / 3); }
+double lube_runout(double a) {
+  return a <= 2.3 ? 1.2 * a : 1.9 * std::pow(a, 2.0 / 3);
+}
 
 /// Final height law of Lube et al. 2005 (2D): H / L0 = a for a < 1.15, a^(2/5) above.
-double lube_height(double a) { return a < 1.15 ? a : std::pow(a, 0.4); }
+double lube_height(double a) {
+  return a < 1.15 ? a : std::pow(a, 0.4);
+}
 
 /// 12. Granular column collapse: symmetric sand columns of half-width L0 and aspect a = H / L0
 /// (one per object) collapse on a rough floor; the final runout (L - L0) / L0 of each side
@@ -726,7 +730,8 @@ const std::vector<Case>& cases() {
       {"spinning_cube", "angular momentum of a spinning cube with no gravity", make<SpinningCube>},
       {"uniaxial_compression", "Neo-Hookean block between slip walls against uniaxial stress",
        make<UniaxialCompression>},
-      {"sliding_block", "block on a 30 degree incline, friction 0.2, against x = g (sin - mu cos) t^2 / 2",
+      {"sliding_block",
+       "block on a 30 degree incline, friction 0.2, against x = g (sin - mu cos) t^2 / 2",
        make<InclineBlock>},
       {"sticking_block", "block on a 30 degree incline, friction 0.8 > tan 30: it stays",
        make<InclineBlock>},
