@@ -220,6 +220,37 @@ inline Failures check_wave_speed(const MaterialInfo& m) {
   return out;
 }
 
+/// For a fluid (water): the stress is a pure pressure set by J alone. On 20 random F,
+/// dev(tau(F)) = 0 and tau(F) = tau(J^(1/3) I), also for F sheared at the same J. Not in
+/// all_checks(): it applies only to materials that store no shear (tests run it on water, and
+/// check that it fails for an elastic solid).
+inline Failures check_pressure_only(const MaterialInfo& m) {
+  Failures out;
+  const OneParticle p(m);
+  std::mt19937 rng(5);
+  for (int k = 0; k < 20; ++k) {
+    const Mat3 F = stored(random_rotation(rng) * random_near_identity(rng, 0.2));
+    const double J = stored(F).determinant();
+    const Mat3 iso = stored(std::cbrt(J) * Mat3::Identity());
+    const Mat3 tau = p.kirchhoff(F), tau_iso = p.kirchhoff(iso);
+    const Mat3 dev = tau - tau.trace() / 3 * Mat3::Identity();
+    // J of the stored F and of the stored J^(1/3) I differ by a few eps_stored, which moves
+    // the pressure by about K (gamma + 1) 3 eps_stored.
+    const double tol =
+        (1e-9 + kStorageStress) * stress_scale(m) * (1 + tau.norm() / stress_scale(m));
+    std::ostringstream s;
+    if (const double d = dev.norm(); !(d <= tol))
+      s << "|dev tau(F)| = " << d << " > " << tol << "\n";
+    if (const double d = (tau - tau_iso).norm(); !(d <= tol))
+      s << "|tau(F) - tau(J^(1/3) I)| = " << d << " > " << tol << " (J = " << J << ")\n";
+    if (!s.str().empty()) {
+      s << "at F =\n" << F << "\n";
+      out.push_back(s.str());
+    }
+  }
+  return out;
+}
+
 /// One named generic check.
 struct Check {
   const char* name;                        ///< Short name, e.g. "rest".

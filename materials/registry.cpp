@@ -1,9 +1,16 @@
 #include "materials/registry.h"
 
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
 #include "materials/corotated.h"
 #include "materials/elastic_group.h"
 #include "materials/neo_hookean.h"
+#include "materials/sand.h"
 #include "materials/snow.h"
+#include "materials/water.h"
 
 namespace mpm {
 
@@ -56,12 +63,69 @@ MaterialInfo snow_info() {
           }};
 }
 
+MaterialInfo sand_info() {
+  std::vector<ParamSpec> params = elastic_param_specs();
+  params[0].default_value = 3.537e5;  // a typical value for sand simulations
+  params[1].default_value = 0.3;
+  ParamSpec phi{
+      "friction_angle", "deg", "phi: Drucker-Prager friction angle", false, 30, 0, 60, true, true};
+  ParamSpec c{"cohesion", "Pa", "c: the cone's apex is the isotropic tension c cot(phi)", false, 0,
+              0,          1e300};
+  ParamSpec vc{"volume_correction",
+               "",
+               "1: volume gained in tension is given back without "
+               "resistance (Klar sec. 7.3.1); 0: off",
+               false,
+               1,
+               0,
+               1};
+  params.insert(params.end(), {phi, c, vc});
+  return {"sand",
+          "Drucker-Prager elastoplasticity on the Hencky strain (plastic)",
+          "Klar et al. 2016, Drucker-Prager elastoplasticity for sand animation",
+          params,
+          true,
+          [](const ParamValues& v, const GroupInfo& g) {
+            const double vcorr = v.at("volume_correction");
+            if (vcorr != 0 && vcorr != 1)
+              throw std::invalid_argument("volume_correction must be 0 (off) or 1 (on), not " +
+                                          std::to_string(vcorr));
+            const Lame l = lame_from_young(v.at("E"), v.at("nu"));
+            const double phi = v.at("friction_angle") * std::numbers::pi / 180;
+            materials::DruckerPragerSand m{
+                l.mu, l.lambda, materials::DruckerPragerSand::cone_alpha(phi),
+                3 * v.at("cohesion") / std::tan(phi) / (3 * l.lambda + 2 * l.mu), vcorr == 1};
+            return std::make_unique<materials::SandGroup>(m, g.density, g.count);
+          }};
+}
+
+MaterialInfo water_info() {
+  ParamSpec K{"bulk_modulus", "Pa", "K: p = K / gamma (J^-gamma - 1)", true, 1e5, 0, 1e300, true};
+  ParamSpec gamma{"gamma", "", "Tait exponent", false, 7, 1, 20, true};
+  ParamSpec eta{"viscosity", "Pa s", "dynamic viscosity (only 0 for now)", false, 0, 0, 1e300};
+  return {"water",
+          "weakly compressible Tait fluid; only J is kept (F = J^(1/3) I)",
+          "Tampubolon et al. 2017, Multi-species simulation of porous sand and water mixtures",
+          {K, gamma, eta},
+          true,
+          [](const ParamValues& v, const GroupInfo& g) {
+            if (v.at("viscosity") != 0)
+              throw std::invalid_argument(
+                  "viscosity > 0 is not supported yet (materials do not see the velocity "
+                  "gradient); use viscosity: 0");
+            return std::make_unique<materials::WaterGroup>(
+                materials::TaitWater{v.at("bulk_modulus"), v.at("gamma")}, g.density);
+          }};
+}
+
 }  // namespace
 
 void register_builtin_materials(MaterialRegistry& registry) {
   registry.add(corotated_info());
   registry.add(neo_hookean_info());
   registry.add(snow_info());
+  registry.add(sand_info());
+  registry.add(water_info());
 }
 
 MaterialRegistry builtin_registry() {

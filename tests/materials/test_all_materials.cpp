@@ -1,7 +1,9 @@
 // Checks every registered material gets for free, the example plugin's included: write a
 // material, register it, and these run on it with no new test code. The checks themselves are
 // materials/material_checks.h, which the installed `mpm_material_check` also runs on plugins.
+#include <algorithm>
 #include <catch2/catch.hpp>
+#include <cstdio>
 
 #include "materials/material_checks.h"
 #include "materials/plugin.h"
@@ -81,4 +83,43 @@ TEST_CASE("the generic checks catch a wrong material", "[materials]") {
   };
   CHECK(!checks::check_rest(bad).empty());
   CHECK(!checks::check_piola(bad).empty());
+}
+
+TEST_CASE("every material: `mpm materials` lists every key with unit, default and range",
+          "[materials]") {
+  std::string listing;
+  {
+    FILE* pipe = popen((std::string(MPM_BINARY) + " materials").c_str(), "r");
+    REQUIRE(pipe != nullptr);
+    char buf[4096];
+    while (std::fgets(buf, sizeof buf, pipe)) listing += buf;
+    REQUIRE(pclose(pipe) == 0);
+  }
+  const MaterialRegistry registry = builtin_registry();
+  for (const MaterialInfo& m : registry.all()) {
+    const std::size_t at = listing.find(m.name + ": " + m.description);
+    INFO("material " << m.name);
+    REQUIRE(at != std::string::npos);
+    for (const ParamSpec& p : m.params) {
+      // The key's row: key, unit (or -), default (or "required"), range, in this order.
+      const std::size_t row = listing.find("\n  " + p.name + " ", at);
+      REQUIRE(row != std::string::npos);
+      const std::string line = listing.substr(row + 1, listing.find('\n', row + 1) - row - 1);
+      // Columns as printed by engine/run/cli.cpp: "  %-22s %-8s %-10s %-16s %s".
+      const auto column = [&](std::size_t from, std::size_t width) {
+        std::string w = line.substr(std::min(from, line.size()), width);
+        w.erase(w.find_last_not_of(' ') + 1);
+        return w;
+      };
+      const std::string key = column(2, 22), unit = column(25, 8), def = column(34, 10);
+      char expected_def[32];
+      std::snprintf(expected_def, sizeof expected_def, "%g", p.default_value);
+      INFO("row: " << line);
+      CHECK(key == p.name);
+      CHECK(unit == (p.unit.empty() ? "-" : p.unit));
+      CHECK(def == (p.required ? std::string("required") : std::string(expected_def)));
+      CHECK(line.find(range_text(p.min, p.max, p.min_exclusive, p.max_exclusive)) !=
+            std::string::npos);
+    }
+  }
 }

@@ -1,0 +1,113 @@
+#pragma once
+/// \file Water: a weakly compressible fluid with the Tait equation of state
+/// p = K / gamma (J^-gamma - 1) (Tait, as used for MPM fluids by Tampubolon, Gast, Klar, Fu,
+/// Teran, Jiang, Museth 2017, "Multi-species simulation of porous sand and water mixtures",
+/// SIGGRAPH, section 4.2; and Stomakhin, Schroeder, Jiang, Chai, Teran, Selle 2014, "Augmented
+/// MPM for phase-change and varied materials", SIGGRAPH, where only J matters for a fluid).
+///
+/// The stress depends on J = det F alone: tau = -p J I (references.md, "Sand and water"). It is
+/// the derivative of the energy per reference volume
+///   psi(J) = K / gamma (J^(1 - gamma) / (gamma - 1) + J) - K / (gamma - 1),
+/// with dpsi/dJ = -p, psi(1) = 0 and P = dpsi/dJ J F^-T, so tau = P F^T = -p J I.
+/// The plasticity stage keeps F = J^(1/3) I after every F update, so no shear strain is stored.
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+
+#include "materials/material.h"
+
+namespace mpm::materials {
+
+/// The Tait fluid: bulk modulus K and exponent gamma.
+struct TaitWater {
+  Real bulk_modulus = 0;  ///< K, Pa.
+  Real gamma = 7;         ///< Tait exponent, dimensionless (> 1).
+
+  /// Below this J the pressure is held at p(kJMin) (psi continued linearly), so a crushed or
+  /// inverted particle has finite stress that still pushes J up (dpsi/dJ < 0 for every J).
+  static constexpr Real kJMin = 0.1;
+
+  /// Pressure p(J) = K / gamma (J^-gamma - 1), Pa; p(kJMin) below kJMin.
+  Real pressure(Real J) const {
+    return bulk_modulus / gamma * (std::pow(std::max(J, kJMin), -gamma) - 1);
+  }
+
+  /// Energy density psi(J), J/m^3 (see the file comment; linear below kJMin).
+  Real energy_of_J(Real J) const {
+    const Real K = bulk_modulus, g = gamma;
+    const Real Jc = std::max(J, kJMin);
+    const Real psi = K / g * (std::pow(Jc, 1 - g) / (g - 1) + Jc) - K / (g - 1);
+    return psi - pressure(Jc) * (J - Jc);  // the linear continuation below kJMin
+  }
+
+  /// Energy density psi(F) = psi(det F), J/m^3.
+  Real energy(const Mat3& F) const { return energy_of_J(F.determinant()); }
+
+  /// Kirchhoff stress tau = -p(J) J I, Pa.
+  Mat3 kirchhoff(const Mat3& F) const {
+    const Real J = F.determinant();
+    return -pressure(J) * J * Mat3::Identity();
+  }
+
+  /// Sound speed c = sqrt(dp/drho) at the current density rho = rho0 / J, m/s: with
+  /// p = K / gamma ((rho / rho0)^gamma - 1), dp/drho = K / rho0 (rho / rho0)^(gamma - 1), so
+  /// c = sqrt(K J^(1 - gamma) / rho0) (sqrt(K / rho0) at rest; J held >= kJMin).
+  Real wave_speed(const Mat3& F, Real rho0) const {
+    const Real J = std::max(F.determinant(), kJMin);
+    return std::sqrt(bulk_modulus * std::pow(J, 1 - gamma) / rho0);
+  }
+
+  /// F = J^(1/3) I with the same J: drops the shear the F update adds.
+  static Mat3 project(const Mat3& F) { return std::cbrt(F.determinant()) * Mat3::Identity(); }
+};
+
+/// MaterialGroup for water. It has no state beyond F; its plasticity stage only projects F.
+class WaterGroup final : public MaterialGroup {
+ public:
+  /// Particles of `model` with reference density `rho0`.
+  WaterGroup(const TaitWater& model, Real rho0) : model_(model), rho0_(rho0) {}
+
+  void compute_stress(std::span<const StoredMat3> F, Real volume0,
+                      std::span<StoredMat3> out) const override {
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+    for (std::ptrdiff_t p = 0; p < n; ++p)
+      out[p] = to_stored(-volume0 * model_.kirchhoff(to_real(F[p])));
+  }
+
+  bool has_plasticity() const override {
+    return true;
+  }
+
+  void apply_plasticity(std::span<StoredMat3> F) override {
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+    for (std::ptrdiff_t p = 0; p < n; ++p) F[p] = to_stored(TaitWater::project(to_real(F[p])));
+  }
+
+  Real max_wave_speed(std::span<const StoredMat3> F) const override {
+    Real c = 0;
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
+#pragma omp parallel for schedule(static) reduction(max : c) if (n >= kParallelMinItems)
+    for (std::ptrdiff_t p = 0; p < n; ++p) c = std::max(c, model_.wave_speed(to_real(F[p]), rho0_));
+    return c;
+  }
+
+  Real elastic_energy(std::span<const StoredMat3> F, Real volume0) const override {
+    Real e = 0;
+    for (std::size_t p = 0; p < F.size(); ++p) e += model_.energy(to_real(F[p]));
+    return volume0 * e;
+  }
+
+  /// The model.
+  const TaitWater& model() const {
+    return model_;
+  }
+
+ private:
+  TaitWater model_;
+  Real rho0_;
+};
+
+}  // namespace mpm::materials
