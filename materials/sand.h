@@ -18,6 +18,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "engine/core/reduce.h"
 #include "materials/material.h"
 #include "materials/svd.h"
 
@@ -171,9 +172,7 @@ class SandGroup final : public MaterialGroup {
   }
 
   Real elastic_energy(std::span<const StoredMat3> F, Real volume0) const override {
-    Real e = 0;
-    for (std::size_t p = 0; p < F.size(); ++p) e += model_.energy(to_real(F[p]));
-    return volume0 * e;
+    return volume0 * sum_chunks(F.size(), [&](std::size_t p) { return model_.energy(to_real(F[p])); });
   }
 
   std::span<Real> state() override {

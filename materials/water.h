@@ -15,6 +15,7 @@
 #include <cmath>
 #include <cstddef>
 
+#include "engine/core/reduce.h"
 #include "materials/material.h"
 
 namespace mpm::materials {
@@ -95,9 +96,7 @@ class WaterGroup final : public MaterialGroup {
   }
 
   Real elastic_energy(std::span<const StoredMat3> F, Real volume0) const override {
-    Real e = 0;
-    for (std::size_t p = 0; p < F.size(); ++p) e += model_.energy(to_real(F[p]));
-    return volume0 * e;
+    return volume0 * sum_chunks(F.size(), [&](std::size_t p) { return model_.energy(to_real(F[p])); });
   }
 
   /// The model.
