@@ -2,6 +2,7 @@
 /// \file MaterialGroup for any hyperelastic value-type model: one tight loop per stage.
 
 #include <algorithm>
+#include <concepts>
 #include <cstddef>
 
 #include "materials/material.h"
@@ -36,6 +37,13 @@ class ElasticGroup final : public MaterialGroup {
     Real e = 0;
     for (std::size_t p = 0; p < F.size(); ++p) e += model_.energy(to_real(F[p]));
     return volume0 * e;
+  }
+
+  BatchModel batch_model() const override {
+    if constexpr (requires(const Model& m) { { m.batch() } -> std::same_as<BatchModel>; })
+      return model_.batch();
+    else
+      return {};
   }
 
   /// The wrapped model.
