@@ -110,7 +110,7 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
                    "object '" + od.name + "' at " + std::to_string(od.particles_per_cell) +
                        " particles per cell");
     }
-    const std::vector<Vec3> points =
+    std::vector<Vec3> points =
         sample_inside(mesh, scene.grid, od.particles_per_cell,
                       od.sampling == Sampling::regular, scene.simulation.seed, o);
     for (const Vec3& x : points)
@@ -133,8 +133,14 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     const Vec3& w = od.angular_velocity;
     Mat3 L = od.velocity_gradient;
     L += (Mat3() << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0).finished();
+    // Arrays grown to exact sizes, and the samples freed before the matrices are allocated:
+    // the peak memory of creation stays below that of the step.
     P.x.insert(P.x.end(), points.begin(), points.end());
-    for (const Vec3& x : points) P.v.push_back(od.velocity + L * (x - centroid));
+    std::vector<Vec3>().swap(points);
+    P.v.reserve(P.v.size() + n);
+    for (std::size_t q = info.first; q < info.first + n; ++q)
+      P.v.push_back(od.velocity + L * (P.x[q] - centroid));
+    P.id.reserve(P.id.size() + n);
     if (scene.simulation.transfer == Transfer::apic || scene.simulation.transfer == Transfer::mls)
       P.C.insert(P.C.end(), n, to_stored(L));
     P.F.insert(P.F.end(), n, StoredMat3::Identity());
@@ -176,7 +182,7 @@ void Simulation::build_stages() {
       if (substeps_ % scene_.simulation.reorder_every != 0) return;
       std::vector<ReorderRange> ranges;
       for (auto& m : materials_) ranges.push_back({m.first, m.count, m.material->state()});
-      reorder_particles(ranges, order_, particles_, reorder_scratch_);
+      reorder_particles(ranges, order_, particles_);
     });
   // The stress of each group (object), chosen here once per group: with simulation.simd, a
   // group whose model has an engine SIMD kernel gets it folded into the SIMD scatter (no
