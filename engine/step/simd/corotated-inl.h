@@ -57,8 +57,8 @@ hn::Mask<D> neg_v0_tau(D d, const V f[9], V two_mu, V lambda, V neg_v0, V out[9]
   // The stopping rule is the scalar one with float's round-off: (P''/2P')^2 step^3 below
   // 2^-22 lambda.
   V l = hn::Sqrt(hn::Mul(hn::Set(d, 3.0f), n2)), dp = hn::Zero(d);
-  const V tol = hn::Set(d, 4.0f / (1 << 22)), four = hn::Set(d, 4.0f),
-          twelve = hn::Set(d, 12.0f), two_c2 = hn::Add(c2, c2);
+  const V tol = hn::Set(d, 4.0f / (1 << 22)), four = hn::Set(d, 4.0f), twelve = hn::Set(d, 12.0f),
+          two_c2 = hn::Add(c2, c2);
   auto active = hn::Eq(l, l);  // every lane with a finite |F|^2
   bool converged = false;
   for (int it = 0; it < 32 && !converged; ++it) {
@@ -66,8 +66,8 @@ hn::Mask<D> neg_v0_tau(D d, const V f[9], V two_mu, V lambda, V neg_v0, V out[9]
     const V p = hn::MulAdd(hn::Add(l2, c2), l2, hn::MulAdd(c1, l, c0));
     const V dpi = hn::MulAdd(hn::MulAdd(four, l2, two_c2), l, c1);
     const V ddp = hn::MulAdd(twelve, l2, two_c2);
-    const V step = hn::Div(hn::Mul(two, hn::Mul(p, dpi)),
-                           hn::MulSub(two, hn::Mul(dpi, dpi), hn::Mul(p, ddp)));
+    const V step =
+        hn::Div(hn::Mul(two, hn::Mul(p, dpi)), hn::MulSub(two, hn::Mul(dpi, dpi), hn::Mul(p, ddp)));
     l = hn::IfThenElse(active, hn::Sub(l, step), l);
     dp = hn::IfThenElse(active, dpi, dp);
     const V err = hn::Mul(hn::Mul(ddp, ddp), hn::Mul(step, hn::Mul(step, step)));
@@ -76,9 +76,9 @@ hn::Mask<D> neg_v0_tau(D d, const V f[9], V two_mu, V lambda, V neg_v0, V out[9]
   }
   // Lanes the scalar path would hand to svd_rv, or whose Halley run did not converge.
   const V n6 = hn::Mul(n2, hn::Mul(n2, n2));
-  const auto ok = hn::AndNot(active, hn::And(hn::Gt(dp, hn::Zero(d)),
-                                             hn::And(hn::Gt(hn::Mul(dp, dp), hn::Mul(four, n6)),
-                                                     hn::Eq(l, l))));
+  const auto ok = hn::AndNot(
+      active, hn::And(hn::Gt(dp, hn::Zero(d)),
+                      hn::And(hn::Gt(hn::Mul(dp, dp), hn::Mul(four, n6)), hn::Eq(l, l))));
 
   // K - lambda I and the columns of its adjugate (as in polar_rotation_quaternion).
   const V tr = hn::Add(F(0, 0), hn::Add(F(1, 1), F(2, 2)));
@@ -143,7 +143,8 @@ hn::Mask<D> neg_v0_tau(D d, const V f[9], V two_mu, V lambda, V neg_v0, V out[9]
   for (int c = 0; c < 3; ++c)
     for (int r = 0; r < 3; ++r) {
       // ((F - R) F^T)(r, c) = sum_k A(r, k) F(c, k)
-      const V t = hn::MulAdd(A[r], F(c, 0), hn::MulAdd(A[3 + r], F(c, 1), hn::Mul(A[6 + r], F(c, 2))));
+      const V t =
+          hn::MulAdd(A[r], F(c, 0), hn::MulAdd(A[3 + r], F(c, 1), hn::Mul(A[6 + r], F(c, 2))));
       out[3 * c + r] = r == c ? hn::MulAdd(a, t, b) : hn::Mul(a, t);
     }
   return hn::Not(ok);
