@@ -38,6 +38,9 @@ struct FixedCorotated {
     return 2 * mu * (F - R) * F.transpose() + lambda * (J - 1) * J * Mat3::Identity();
   }
 
+  /// The engine's float SIMD kernel for this model (engine/step/simd/corotated-inl.h).
+  BatchModel batch() const { return {BatchModel::Kind::fixed_corotated, mu, lambda}; }
+
   /// P-wave speed sqrt((lambda + 2 mu) / rho) at current density rho0 / J, m/s.
   Real wave_speed(const Mat3& F, Real rho0) const {
     const Real J = std::max(std::abs(F.determinant()), Real(1e-6));

@@ -2,6 +2,7 @@
 /// \file MaterialGroup for any hyperelastic value-type model: one tight loop per stage.
 
 #include <algorithm>
+#include <concepts>
 #include <cstddef>
 
 #include "engine/core/reduce.h"
@@ -35,6 +36,13 @@ class ElasticGroup final : public MaterialGroup {
 
   Real elastic_energy(std::span<const StoredMat3> F, Real volume0) const override {
     return volume0 * sum_chunks(F.size(), [&](std::size_t p) { return model_.energy(to_real(F[p])); });
+  }
+
+  BatchModel batch_model() const override {
+    if constexpr (requires(const Model& m) { { m.batch() } -> std::same_as<BatchModel>; })
+      return model_.batch();
+    else
+      return {};
   }
 
   /// The wrapped model.

@@ -50,6 +50,16 @@ struct GroupInfo {
   std::size_t count = 0;  ///< Number of particles in the group's range.
 };
 
+/// A model the engine can also run in float SIMD lanes (engine/step/simd/stress_simd.h), named
+/// with its parameters, so the engine's kernels need no virtual call per particle.
+struct BatchModel {
+  /// The models with a SIMD kernel.
+  enum class Kind { none, fixed_corotated };
+  Kind kind = Kind::none;  ///< none: the engine calls compute_stress.
+  Real mu = 0;             ///< Shear modulus (fixed_corotated), Pa.
+  Real lambda = 0;         ///< First Lamé parameter (fixed_corotated), Pa.
+};
+
 /// A material applied to one contiguous range of particles.
 ///
 /// The engine calls each method once per group per stage with spans of that range, so the
@@ -80,6 +90,12 @@ class MaterialGroup {
   /// restore it through this view, so a resumed run continues bit for bit, and the reorder
   /// stage moves each particle's values with the particle.
   virtual std::span<Real> state() { return {}; }
+
+  /// The model whose stress compute_stress computes, if the engine has a SIMD kernel for it
+  /// (simulation.simd: true then runs that kernel, in float, in place of compute_stress); kind
+  /// none (the default) if not, or if the group does more than the model (e.g. plasticity's
+  /// rescaled moduli).
+  virtual BatchModel batch_model() const { return {}; }
 };
 
 /// A registered material: its name, parameter table and factory.

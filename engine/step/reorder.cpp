@@ -6,12 +6,13 @@
 namespace mpm {
 
 void reorder_particles(std::span<const ReorderRange> ranges, ParticleOrder& order,
-                       Particles& p, std::vector<std::uint32_t>& scratch) {
+                       Particles& p) {
   const std::size_t n = p.size();
   if (n == 0) return;
   // dest[q]: the new index of particle q. Walking the sorted order and handing out the next
-  // free index of q's range keeps each range's particles in cell order.
-  std::vector<std::uint32_t>& dest = scratch;
+  // free index of q's range keeps each range's particles in cell order. It overwrites the cell
+  // keys, rebuilt at the end.
+  std::vector<std::uint32_t>& dest = order.keys;
   dest.resize(n);
   std::vector<std::size_t> next(p.object_mass.size());
   std::vector<std::size_t> range_of_object(p.object_mass.size());
@@ -37,7 +38,6 @@ void reorder_particles(std::span<const ReorderRange> ranges, ParticleOrder& orde
       std::swap(p.F[q], p.F[d]);
       if (apic) std::swap(p.C[q], p.C[d]);
       std::swap(p.id[q], p.id[d]);
-      std::swap(order.keys[q], order.keys[d]);
       const ReorderRange& r = ranges[range_of_object[p.object[q]]];
       if (!r.state.empty()) {
         const std::size_t s = r.state.size() / r.count;
@@ -48,6 +48,13 @@ void reorder_particles(std::span<const ReorderRange> ranges, ParticleOrder& orde
       std::swap(dest[q], dest[d]);
     }
   }
+  // The cell keys of the new indices: sort position k lies in cell c for
+  // counts[c - 1] <= k < counts[c] (counts[-1] = 0).
+  std::vector<std::uint32_t>& keys = order.keys;
+  const std::size_t cells = order.counts.size() - 1;
+  std::size_t k = 0;
+  for (std::size_t c = 0; c < cells; ++c)
+    for (; k < order.counts[c]; ++k) keys[order.order[k]] = static_cast<std::uint32_t>(c);
 }
 
 }  // namespace mpm

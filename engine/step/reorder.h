@@ -24,8 +24,10 @@ struct ReorderRange {
 /// `order.keys` are rewritten for the new indices, so the substep continues without a new
 /// sort. The counting sort is stable, so the particles of one cell keep their relative order
 /// and every grid sum is unchanged: results are bit-identical with or without reordering.
-/// `scratch` is reused between calls (one index per particle).
+/// The permutation is held in `order.keys` while it is applied (no array of its own), and the
+/// keys are then rebuilt from the sort's cell ranges (`order.counts`, as sort_particles leaves
+/// them: counts[c] is the end of cell c).
 void reorder_particles(std::span<const ReorderRange> ranges, ParticleOrder& order,
-                       Particles& p, std::vector<std::uint32_t>& scratch);
+                       Particles& p);
 
 }  // namespace mpm

@@ -15,6 +15,8 @@
 #include "engine/scene/mesh.h"
 #include "engine/scene/sampling.h"
 #include "engine/step/reorder.h"
+#include "engine/step/simd/stress_simd.h"
+#include "engine/step/simd/transfer_simd.h"
 
 namespace mpm {
 
@@ -110,7 +112,7 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
                    "object '" + od.name + "' at " + std::to_string(od.particles_per_cell) +
                        " particles per cell");
     }
-    const std::vector<Vec3> points =
+    std::vector<Vec3> points =
         sample_inside(mesh, scene.grid, od.particles_per_cell,
                       od.sampling == Sampling::regular, scene.simulation.seed, o);
     for (const Vec3& x : points)
@@ -133,8 +135,14 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     const Vec3& w = od.angular_velocity;
     Mat3 L = od.velocity_gradient;
     L += (Mat3() << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0).finished();
+    // Arrays grown to exact sizes, and the samples freed before the matrices are allocated:
+    // the peak memory of creation stays below that of the step.
     P.x.insert(P.x.end(), points.begin(), points.end());
-    for (const Vec3& x : points) P.v.push_back(od.velocity + L * (x - centroid));
+    std::vector<Vec3>().swap(points);
+    P.v.reserve(P.v.size() + n);
+    for (std::size_t q = info.first; q < info.first + n; ++q)
+      P.v.push_back(od.velocity + L * (P.x[q] - centroid));
+    P.id.reserve(P.id.size() + n);
     if (scene.simulation.transfer == Transfer::apic || scene.simulation.transfer == Transfer::mls)
       P.C.insert(P.C.end(), n, to_stored(L));
     P.F.insert(P.F.end(), n, StoredMat3::Identity());
@@ -159,7 +167,6 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     sim->materials_.push_back({info.first, n, std::move(group)});
     sim->objects_.push_back(info);
   }
-  P.stress.assign(P.size(), StoredMat3::Zero());
   sim->walls_ = build_wall_planes(scene.walls);
   sim->build_stages();
   return sim;
@@ -177,18 +184,46 @@ void Simulation::build_stages() {
       if (substeps_ % scene_.simulation.reorder_every != 0) return;
       std::vector<ReorderRange> ranges;
       for (auto& m : materials_) ranges.push_back({m.first, m.count, m.material->state()});
-      reorder_particles(ranges, order_, particles_, reorder_scratch_);
+      reorder_particles(ranges, order_, particles_);
     });
-  add("compute_stress", [this](Real) {
-    for (auto& m : materials_)
-      m.material->compute_stress(slice(std::as_const(particles_.F), m),
-                                 particles_.volume0(m.first), slice(particles_.stress, m));
-  });
+  // The stress of each group (object), chosen here once per group: with simulation.simd, a
+  // group whose model has an engine SIMD kernel gets it folded into the SIMD scatter (no
+  // stress array, no pass), or, where the scatter is scalar (FLIP), run as its own SIMD pass;
+  // any other group runs its compute_stress into Particles::stress.
+  const bool fold_all = s.simd && simd::supports(s.transfer, s.kernel, grid_);
+  std::vector<BatchModel> batch, fold;
+  bool stored = false;
+  for (const auto& m : materials_) {
+    const BatchModel b = m.material->batch_model();
+    const bool lanes = s.simd && simd::supports_stress(b);
+    fold.push_back(lanes && fold_all ? b : BatchModel{});
+    batch.push_back(lanes && !fold_all ? b : BatchModel{});
+    stored |= !(lanes && fold_all);
+  }
+  if (!std::any_of(fold.begin(), fold.end(),
+                   [](const BatchModel& b) { return b.kind != BatchModel::Kind::none; }))
+    fold.clear();
+  // Only what the scene calls for is stored.
+  particles_.stress.assign(stored ? particles_.size() : 0, StoredMat3::Zero());
+  particles_.stress.shrink_to_fit();
+  if (stored)
+    add("compute_stress", [this, batch, fold](Real) {
+      for (std::size_t g = 0; g < materials_.size(); ++g) {
+        if (g < fold.size() && fold[g].kind != BatchModel::Kind::none) continue;
+        const auto& m = materials_[g];
+        const auto F = slice(std::as_const(particles_.F), m);
+        const Real v0 = particles_.volume0(m.first);
+        if (batch[g].kind != BatchModel::Kind::none)
+          simd::stress(batch[g], F, v0, slice(particles_.stress, m));
+        else
+          m.material->compute_stress(F, v0, slice(particles_.stress, m));
+      }
+    });
   add("particles_to_grid",
-      [this](Real dt) {
+      [this, fold](Real dt) {
         const SimulationDesc& sd = scene_.simulation;
         particles_to_grid(particles_, order_, sd.transfer, sd.kernel, dt, grid_,
-                          sd.simd ? TransferPath::simd : TransferPath::scalar);
+                          sd.simd ? TransferPath::simd : TransferPath::scalar, fold);
       });
   add("grid_update", [this](Real) { grid_update(grid_); });
   // PIC and APIC scatter the stress force as an impulse (see particles_to_grid).

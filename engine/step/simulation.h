@@ -118,7 +118,6 @@ class Simulation {
   Particles particles_;
   Grid grid_;
   ParticleOrder order_;
-  std::vector<std::uint32_t> reorder_scratch_;
   std::vector<ObjectInfo> objects_;
   std::vector<MaterialRange> materials_;
   std::vector<WallPlane> walls_;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "engine/step/kernels.h"
 #include "engine/step/simd/transfer_simd.h"
@@ -206,7 +207,8 @@ void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt, Grid& g)
 }  // namespace
 
 void particles_to_grid(const Particles& p, const ParticleOrder& ord, Transfer transfer,
-                       Kernel kernel, Real dt, Grid& g, TransferPath path) {
+                       Kernel kernel, Real dt, Grid& g, TransferPath path,
+                       std::span<const BatchModel> fold) {
   // The node arrays hold exactly the active blocks; clear all of them, padding included (a
   // slot may have held another block before).
   const std::ptrdiff_t nodes = static_cast<std::ptrdiff_t>(g.mass.size());
@@ -216,8 +218,10 @@ void particles_to_grid(const Particles& p, const ParticleOrder& ord, Transfer tr
     g.velocity[i].setZero();
     if (g.flip) g.force[i].setZero();
   }
-  if (path == TransferPath::simd && simd::supports(transfer, kernel, g))
-    return simd::scatter(p, ord, transfer, kernel, dt, g);
+  const bool simd_path = path == TransferPath::simd && simd::supports(transfer, kernel, g);
+  if (simd_path) return simd::scatter(p, ord, transfer, kernel, dt, g, fold);
+  if (!fold.empty())  // the caller did not compute these particles' stress
+    throw std::logic_error("particles_to_grid: stress folded into a scatter the SIMD path cannot run");
   dispatch_kernel(kernel, [&]<Kernel K>() {
     switch (transfer) {
       case Transfer::apic: scatter_all<K, true, true>(p, ord, dt, g); break;

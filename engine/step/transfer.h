@@ -2,11 +2,13 @@
 /// \file Particle <-> grid transfers and the particle-side stages of a substep.
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "engine/step/grid.h"
 #include "engine/core/particles.h"
 #include "engine/scene/scene_desc.h"
+#include "materials/material.h"
 
 namespace mpm {
 
@@ -18,7 +20,9 @@ namespace mpm {
 struct ParticleOrder {
   std::vector<std::uint32_t> order;     ///< Particle indices sorted by stencil base cell.
   std::vector<std::size_t> slab_start;  ///< order[slab_start[s] .. slab_start[s+1]) is slab s.
-  std::vector<std::uint32_t> counts;    ///< Scratch for the counting sort.
+  std::vector<std::uint32_t> counts;    ///< The counting sort's cell offsets: after the sort,
+                                        ///< counts[c] is where cell c's run in `order` ends
+                                        ///< (reorder_particles rebuilds `keys` from it).
   std::vector<std::uint32_t> keys;      ///< Each particle's stencil base cell (particles_to_grid
                                         ///< sums a cell's particles before writing its nodes).
 };
@@ -40,9 +44,14 @@ enum class TransferPath { scalar, simd };
 /// applied after the velocity before forces is saved. The particles of one stencil base cell
 /// are summed locally and written to their nodes once. MLS (Hu et al. 2018, eq. 29) scatters
 /// no force: the stress enters the affine term, m C + dt (-V0 tau) D^-1.
+///
+/// The stress -V0 tau is read from p.stress, except on the SIMD path for the particles of an
+/// object o with a model in fold[o] (see simd::scatter): their stress is computed in the
+/// scatter and never stored. `fold` must be empty unless simd::supports(transfer, kernel, grid).
 void particles_to_grid(const Particles& p, const ParticleOrder& order, Transfer transfer,
                        Kernel kernel, Real dt, Grid& grid,
-                       TransferPath path = TransferPath::scalar);
+                       TransferPath path = TransferPath::scalar,
+                       std::span<const BatchModel> fold = {});
 
 /// Gathers velocity (PIC, FLIP blend, or APIC with C = B D^-1, D = h^2 / 4 quadratic, h^2 / 3
 /// cubic, Jiang et al. 2015 eq. 8-10) into the particles, and updates F <- (I + dt grad v) F

@@ -35,9 +35,16 @@ struct Watchdog : Observer {
     momentum.push_back(m);
     // The magnitudes the scatter sums for momentum: m |v| and the stress impulses
     // dt |-V0 tau| |grad w_i| (sum over the nodes of |grad w_i| <= 2 sqrt(3) / h, quadratic).
+    // -V0 tau from each group at the current F (the SIMD step folds it into the scatter and
+    // does not store it).
+    std::vector<StoredMat3> stress(p.size());
+    for (const MaterialRange& r : sim.materials())
+      r.material->compute_stress(std::span<const StoredMat3>(p.F).subspan(r.first, r.count),
+                                 p.volume0(r.first),
+                                 std::span<StoredMat3>(stress).subspan(r.first, r.count));
     Real scale = 0;
     for (std::size_t q = 0; q < p.size(); ++q)
-      scale += p.mass(q) * p.v[q].norm() + sim.stable_dt() * to_real(p.stress[q]).norm() * 2 *
+      scale += p.mass(q) * p.v[q].norm() + sim.stable_dt() * to_real(stress[q]).norm() * 2 *
                                                 std::sqrt(3.0) / sim.grid().h.minCoeff();
     momentum_scale = std::max(momentum_scale, scale);
     energy.push_back(sim.total_energy() - sim.wall_work());

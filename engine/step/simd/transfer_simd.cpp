@@ -15,12 +15,16 @@
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/highway.h>
 
+#include "engine/step/simd/corotated-inl.h"
+#include "materials/corotated.h"
+
 HWY_BEFORE_NAMESPACE();
 namespace mpm::simd {
 namespace HWY_NAMESPACE {
 #if HWY_TARGET == HWY_SCALAR
 // One lane cannot hold a stencil's 1D weights: on a CPU without SSE4 the scalar path runs.
-void ScatterImpl(const Particles&, const ParticleOrder&, Transfer, Kernel, Real, Grid&) {}
+void ScatterImpl(const Particles&, const ParticleOrder&, Transfer, Kernel, Real,
+                 std::span<const BatchModel>, Grid&) {}
 void GatherImpl(const Grid&, Transfer, Kernel, Real, Particles&) {}
 const char* TargetImpl() { return nullptr; }
 #else
@@ -71,12 +75,70 @@ void lane_weights(DF d, VF x, VF* w, VF* dw) {
   }
 }
 
+/// -V0 tau of the kLanes particles order[b0, b0 + kLanes) (clamped to `end`), for the scatter:
+/// computed in lanes for the objects whose model `fold` names (the stress folded into the
+/// scatter, so it is never stored), read from p.stress for the others.
+struct StressBatch {
+  std::size_t b0 = 0, b1 = 0;          ///< The batch is order[b0, b1).
+  alignas(64) float tau[9][kLanes];    ///< -V0 tau per lane, column-major.
+};
+
+/// Fills `sb` with the stresses of order[b0, min(b0 + kLanes, end)).
+void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
+                 std::size_t b0, std::size_t end, StressBatch& sb) {
+  const DF d;
+  sb.b0 = b0;
+  sb.b1 = std::min(end, b0 + kLanes);
+  const std::size_t count = sb.b1 - b0;
+  alignas(64) float in[9][kLanes], mu2[kLanes], lam[kLanes], nv0[kLanes];
+  bool any = false;
+  for (std::size_t l = 0; l < kLanes; ++l) {
+    const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
+    const std::uint32_t o = p.object[pi];
+    const bool lane = o < fold.size() && fold[o].kind == BatchModel::Kind::fixed_corotated;
+    any |= lane && l < count;
+    const StoredReal* f = p.F[pi].data();
+    for (int e = 0; e < 9; ++e) in[e][l] = static_cast<float>(f[e]);
+    mu2[l] = lane ? static_cast<float>(2 * fold[o].mu) : 0.0f;
+    lam[l] = lane ? static_cast<float>(fold[o].lambda) : 0.0f;
+    nv0[l] = static_cast<float>(-p.object_volume0[o]);
+  }
+  std::uint64_t bad = 0;
+  if (any) {
+    hn::Vec<DF> fv[9], tau[9];
+    for (int e = 0; e < 9; ++e) fv[e] = hn::Load(d, in[e]);
+    const auto m = corotated::neg_v0_tau(d, fv, hn::Load(d, mu2), hn::Load(d, lam),
+                                         hn::Load(d, nv0), tau);
+    for (int e = 0; e < 9; ++e) hn::Store(tau[e], d, sb.tau[e]);
+    if (!hn::AllFalse(d, m)) {
+      alignas(8) std::uint8_t bits[8] = {};
+      hn::StoreMaskBits(d, m, bits);
+      for (int b = 0; b < 8; ++b) bad |= std::uint64_t{bits[b]} << (8 * b);
+    }
+  }
+  for (std::size_t l = 0; l < count; ++l) {
+    const std::uint32_t pi = ord.order[b0 + l];
+    const std::uint32_t o = p.object[pi];
+    const bool lane = o < fold.size() && fold[o].kind == BatchModel::Kind::fixed_corotated;
+    if (lane && !(bad >> l & 1)) continue;
+    // Not folded (the stress stage wrote p.stress), or a lane the float quaternion cannot
+    // give to float accuracy: the scalar double model, as simd::stress does.
+    StoredMat3 t;
+    if (lane)
+      t = to_stored(-p.object_volume0[o] *
+                    materials::FixedCorotated{fold[o].mu, fold[o].lambda}.kirchhoff(to_real(p.F[pi])));
+    else
+      t = p.stress[pi];
+    for (int e = 0; e < 9; ++e) sb.tau[e][l] = static_cast<float>(t.data()[e]);
+  }
+}
+
 /// Scatters order[begin, end) (the grid cleared): one lane per stencil node. For each
 /// particle the node values are affine in the node's (i, j, k) and products of the 1D
 /// weights, which are looked up per lane from three small tables.
 template <Kernel K, Transfer T>
 void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t begin,
-                   std::size_t end, Real dt, Grid& g) {
+                   std::size_t end, Real dt, std::span<const BatchModel> fold, Grid& g) {
   using Traits = KernelTraits<K>;
   constexpr int N = Traits::kNodes, kNodes = N * N * N;
   constexpr int NV = static_cast<int>((kNodes + kLanes - 1) / kLanes);  // vectors per stencil
@@ -96,12 +158,13 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
   const Vec3 inv_D = Traits::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
   alignas(64) float wt[3][kLanes] = {}, dwt[3][kLanes] = {};
   alignas(64) float out[4][NV * kLanes];
+  StressBatch sb;
   for (std::size_t q = begin; q < end;) {
     const std::uint32_t cell = ord.keys[ord.order[q]];
     VF acc[4][NV];  // mass, momentum x, y, z per node
     for (auto& a : acc)
       for (VF& v : a) v = hn::Zero(d);
-    Vec3i base;
+    Vec3i base = Vec3i::Zero();
     for (; q < end && ord.keys[ord.order[q]] == cell; ++q) {
       const std::uint32_t pi = ord.order[q];
       const auto s = make_stencil<K>(p.x[pi], g.origin, g.inv_h);
@@ -113,16 +176,19 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
         }
       // Momentum at node (i, j, k): m v + Q (corner + (i, j, k) h - x) = a + i c0 + j c1 + k c2,
       // Q = m C (APIC) or m C + dt (-V0 tau) D^-1 (MLS, Hu et al. 2018, eq. 29).
+      if (q >= sb.b1) fill_stress(p, ord, fold, q, end, sb);
+      Mat3 stress;  // -V0 tau, as float (as stored by the stress stage)
+      for (int e = 0; e < 9; ++e) stress.data()[e] = sb.tau[e][q - sb.b0];
       const Real m = p.mass(pi);
       Vec3 av = m * p.v[pi];
       Mat3 c = Mat3::Zero();
       if constexpr (kAffine) {
         Mat3 Q = m * to_real(p.C[pi]);
-        if constexpr (T == Transfer::mls) Q += dt * to_real(p.stress[pi]) * inv_D.asDiagonal();
+        if constexpr (T == Transfer::mls) Q += dt * stress * inv_D.asDiagonal();
         av += Q * (g.position(base.x(), base.y(), base.z()) - p.x[pi]);
         c = Q * g.h.asDiagonal();
       }
-      const Mat3 S = dt * to_real(p.stress[pi]);  // impulse dt f = dt (-V0 tau) grad w
+      const Mat3 S = dt * stress;  // impulse dt f = dt (-V0 tau) grad w
       const VF W0 = hn::Load(d, wt[0]), W1 = hn::Load(d, wt[1]), W2 = hn::Load(d, wt[2]);
       const VF D0 = hn::Load(d, dwt[0]), D1 = hn::Load(d, dwt[1]), D2 = hn::Load(d, dwt[2]);
       const VF mv = hn::Set(d, static_cast<float>(m));
@@ -174,12 +240,13 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
 }
 
 template <Kernel K, Transfer T>
-void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt, Grid& g) {
+void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt,
+                 std::span<const BatchModel> fold, Grid& g) {
   const int slabs = static_cast<int>(ord.slab_start.size()) - 1;
   for (int color = 0; color < 2; ++color) {
 #pragma omp parallel for schedule(dynamic, 1) if (ord.order.size() >= kParallelMinItems)
     for (int s = color; s < slabs; s += 2)
-      scatter_range<K, T>(p, ord, ord.slab_start[s], ord.slab_start[s + 1], dt, g);
+      scatter_range<K, T>(p, ord, ord.slab_start[s], ord.slab_start[s + 1], dt, fold, g);
   }
 }
 
@@ -333,8 +400,8 @@ void dispatch(Transfer t, Kernel k, Fn&& f) {
 }  // namespace
 
 void ScatterImpl(const Particles& p, const ParticleOrder& ord, Transfer t, Kernel k, Real dt,
-                 Grid& g) {
-  dispatch(t, k, [&]<Kernel K, Transfer T>() { scatter_all<K, T>(p, ord, dt, g); });
+                 std::span<const BatchModel> fold, Grid& g) {
+  dispatch(t, k, [&]<Kernel K, Transfer T>() { scatter_all<K, T>(p, ord, dt, fold, g); });
 }
 
 void GatherImpl(const Grid& g, Transfer t, Kernel k, Real dt, Particles& p) {
@@ -360,8 +427,8 @@ bool supports(Transfer transfer, Kernel, const Grid& grid) {
 }
 
 void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, Kernel kernel,
-             Real dt, Grid& grid) {
-  HWY_DYNAMIC_DISPATCH(ScatterImpl)(p, order, transfer, kernel, dt, grid);
+             Real dt, Grid& grid, std::span<const BatchModel> fold) {
+  HWY_DYNAMIC_DISPATCH(ScatterImpl)(p, order, transfer, kernel, dt, fold, grid);
 }
 
 void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p) {

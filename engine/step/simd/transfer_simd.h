@@ -6,11 +6,14 @@
 /// thread count on one machine (every sum runs in the same order; a particle's lane does not
 /// depend on its neighbours).
 
+#include <span>
+
 #include "engine/core/particles.h"
 #include "engine/scene/scene_desc.h"
 #include "engine/step/grid.h"
 #include "engine/step/kernels.h"
 #include "engine/step/transfer.h"
+#include "materials/material.h"
 
 namespace mpm::simd {
 
@@ -21,9 +24,12 @@ bool supports(Transfer transfer, Kernel kernel, const Grid& grid);
 
 /// particles_to_grid's scatter (the grid already cleared) with one SIMD lane per stencil node:
 /// for each particle of a stencil base cell, all N^3 node contributions at once, summed over
-/// the cell's particles in registers, then added to the grid once per cell.
+/// the cell's particles in registers, then added to the grid once per cell. The stress of a
+/// particle whose object o has a model in fold[o] is computed here, kLanes particles at a time
+/// in the scatter's order (engine/step/simd/corotated-inl.h, the same values simd::stress
+/// gives), and never stored; the others' is read from p.stress.
 void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, Kernel kernel,
-             Real dt, Grid& grid);
+             Real dt, Grid& grid, std::span<const BatchModel> fold = {});
 
 /// grid_to_particles with one SIMD lane per particle, L consecutive particles at a time: the
 /// weights computed once per lane set, node velocities gathered from grid.velocity_f (which

@@ -71,9 +71,18 @@ double param(const ObjectDesc& o, const std::string& key) {
   return it->second;
 }
 
-/// Cauchy stress sigma = tau / J of particle q (compute_stress stored -V0 tau).
-Mat3 cauchy_stress(const Particles& p, std::size_t q) {
-  return -to_real(p.stress[q]) / (p.volume0(q) * to_real(p.F[q]).determinant());
+/// Cauchy stress sigma = tau / J of particle q at its current F, from its material group's
+/// compute_stress (the step need not store the stress: the SIMD scatter folds it in).
+Mat3 cauchy_stress(const Simulation& sim, std::size_t q) {
+  const Particles& p = sim.particles();
+  for (const MaterialRange& m : sim.materials())
+    if (q >= m.first && q < m.first + m.count) {
+      StoredMat3 neg_v0_tau;
+      m.material->compute_stress(std::span<const StoredMat3>(&p.F[q], 1), p.volume0(q),
+                                 std::span<StoredMat3>(&neg_v0_tau, 1));
+      return -to_real(neg_v0_tau) / (p.volume0(q) * to_real(p.F[q]).determinant());
+    }
+  throw std::logic_error("particle " + std::to_string(q) + " lies in no material range");
 }
 
 /// Mass-weighted mean of a per-particle vector `field` (e.g. Particles::x) over one object.
@@ -165,7 +174,7 @@ class RestingColumn final : public Probe {
       const double u_exact = -(rho * g / E) * (H * Y - 0.5 * Y * Y);
       const double u = p.x[q].y() - X.y();
       du.push_back((u - u_exact) / u_top);
-      dsig.push_back((cauchy_stress(p, q)(1, 1) + rho * g * (H - Y)) / (rho * g * H));
+      dsig.push_back((cauchy_stress(sim, q)(1, 1) + rho * g * (H - Y)) / (rho * g * H));
       if (Y > 0.9 * H) top_u += u, top_exact += u_exact, ++top;
     }
     out.error_name = "settled height error / exact settlement";
@@ -367,7 +376,7 @@ class UniaxialCompression final : public Probe {
     const Lame lame = lame_from_young(param(od, "E"), param(od, "nu"));
     const std::vector<std::size_t> at = index_by_id(sim.particles());
     double s = 0;
-    for (std::size_t id : middle_) s += cauchy_stress(sim.particles(), at[id])(1, 1);
+    for (std::size_t id : middle_) s += cauchy_stress(sim, at[id])(1, 1);
     return {s / middle_.size(), neo_hookean_uniaxial_stress(lame.mu, lame.lambda, gap(sim) / gap0_)};
   }
   std::vector<std::size_t> lower_, upper_, middle_;  // particle ids
