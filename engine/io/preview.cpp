@@ -234,7 +234,7 @@ void draw_walls(Canvas& c, const PreviewWalls& walls) {
         for (int axis = 0; axis < 3; ++axis)
           if (!(k & (1 << axis)))
             draw_segment(c, corner(k), corner(k | (1 << axis)), radius, kPreviewWallLine);
-    } else {
+    } else if (w.shape == WallDesc::Shape::plane) {  // colliders are not drawn yet
       const std::vector<Vec3> cut = plane_cut(w.point, w.normal.normalized(), lo, hi);
       for (std::size_t k = 0; k < cut.size(); ++k)
         draw_segment(c, cut[k], cut[(k + 1) % cut.size()], radius, kPreviewWallLine);
