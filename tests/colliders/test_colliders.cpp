@@ -13,6 +13,7 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/LevelSetSphere.h>
 
+#include "engine/io/preview.h"
 #include "engine/run/run.h"
 #include "engine/scene/validate.h"
 #include "support/helpers.h"
@@ -299,4 +300,35 @@ TEST_CASE("mpm validate warns of a collider that overlaps an object at the start
   sim = Simulation::create(scene, builtin_registry());
   for (const std::string& line : scene_warnings(*sim))
     CHECK(line.find("collider") == std::string::npos);
+}
+
+TEST_CASE("previews draw colliders where the colliders stage puts them", "[colliders]") {
+  // A box mesh spinning a quarter turn per second about z through its offset, moving +x at
+  // 0.1 m/s; a sphere. At t = 1 the box's long axis points along y.
+  const SceneDesc scene = test::scene_from(
+      ball_drop("  - mesh: {file: meshes/cube.obj, scale: [0.4, 0.1, 0.1], "
+                "offset: [0.5, 0.3, 0.5]}\n"
+                "    angular_velocity: [0, 0, 1.5707963267948966]\n"
+                "    velocity: [0.1, 0, 0]\n"
+                "  - sphere: {center: [0.2, 0.3, 0.5], radius: 0.05}\n"));
+  const PreviewWalls at = preview_walls(scene, 1.0);
+  REQUIRE(at.walls.size() == 1);  // the floor plane; colliders are edges
+  // 12 box edges (the faces' diagonals are not feature edges), 3 circles of 48 segments.
+  REQUIRE(at.collider_edges.size() == 12 + 3 * 48);
+  const Vec3 centre(0.6, 0.3, 0.5);
+  for (std::size_t e = 0; e < 12; ++e)
+    for (const Vec3& x : {at.collider_edges[e].first, at.collider_edges[e].second}) {
+      const Vec3 d = x - centre;  // a corner of the turned box: |dx| = 0.05, |dy| = 0.2
+      CHECK(std::abs(d.x()) == Approx(0.05));
+      CHECK(std::abs(d.y()) == Approx(0.2));
+      CHECK(std::abs(d.z()) == Approx(0.05));
+    }
+  for (std::size_t e = 12; e < at.collider_edges.size(); ++e)
+    CHECK((at.collider_edges[e].first - Vec3(0.2, 0.3, 0.5)).norm() == Approx(0.05));
+  // Drawn: the middle of a vertical edge of the box is the wall-line colour.
+  const PreviewCamera cam = default_camera(Vec3(0, 0, 0), Vec3(1, 1, 1));
+  const RgbImage img = render_preview_image(FrameView{}, cam, 320, 240, at);
+  const Projection p = project(cam, img.width, img.height, centre + Vec3(0.05, 0, 0.05));
+  REQUIRE(p.visible(img.width, img.height));
+  CHECK(img.at(static_cast<int>(p.x), static_cast<int>(p.y)) == kPreviewWallLine);
 }
