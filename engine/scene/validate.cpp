@@ -123,7 +123,9 @@ std::vector<std::string> objects_near_buffer(const Simulation& sim) {
       for (const WallPlane& pl : planes) {
         const Vec3 inward = side == 0 ? Vec3(Vec3::Unit(a)) : Vec3(-Vec3::Unit(a));
         const Real at = (pl.point + pl.offset(0))[a];
-        if (pl.normal.dot(inward) > 1 - 1e-9 && (side == 0 ? at >= layer_x : at <= layer_x))
+        const Real slack = 1e-9 * g.h[a];  // a wall written at the layer's coordinate
+        if (pl.normal.dot(inward) > 1 - 1e-9 &&
+            (side == 0 ? at >= layer_x - slack : at <= layer_x + slack))
           covered = true;
       }
       if (covered) continue;
