@@ -1,9 +1,5 @@
 #include "engine/io/preview.h"
 
-#include "engine/io/atomic_file.h"
-#include "engine/scene/mesh.h"
-#include "engine/step/walls.h"
-
 #include <png.h>
 
 #include <algorithm>
@@ -14,6 +10,10 @@
 #include <stdexcept>
 #include <string>
 #include <system_error>
+
+#include "engine/io/atomic_file.h"
+#include "engine/scene/mesh.h"
+#include "engine/step/walls.h"
 
 namespace mpm {
 
@@ -276,8 +276,7 @@ std::vector<std::pair<Vec3, Vec3>> collider_outline(const WallDesc& w) {
     const Vec3 n = (mesh.vertices[t[1]] - mesh.vertices[t[0]])
                        .cross(mesh.vertices[t[2]] - mesh.vertices[t[0]])
                        .normalized();
-    for (int e = 0; e < 3; ++e)
-      normals[std::minmax(t[e], t[(e + 1) % 3])].push_back(n);
+    for (int e = 0; e < 3; ++e) normals[std::minmax(t[e], t[(e + 1) % 3])].push_back(n);
   }
   const double cos_feature = std::cos(20 * std::numbers::pi / 180);
   for (const auto& [edge, n] : normals)

@@ -152,9 +152,10 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       const Real scale = std::max(std::abs(result.energy_start), std::abs(sim.wall_work()));
       if (energy > result.energy_start + kEnergyGrowthLimit * scale + 1e-9) {
         char buf[200];
-        std::snprintf(buf, sizeof buf,
-                      "total energy less the work of moving walls and colliders grew from %.4g J to %.4g J",
-                      static_cast<double>(result.energy_start), static_cast<double>(energy));
+        std::snprintf(
+            buf, sizeof buf,
+            "total energy less the work of moving walls and colliders grew from %.4g J to %.4g J",
+            static_cast<double>(result.energy_start), static_cast<double>(energy));
         fail({buf, ""}, f);
         break;
       }

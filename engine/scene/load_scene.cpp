@@ -103,10 +103,11 @@ std::filesystem::path read_collider_file(ParamReader& r, const std::filesystem::
 WallDesc read_wall(ParamReader r, const std::filesystem::path& scene_dir) {
   WallDesc w;
   w.loc = r.loc();
-  const std::pair<const char*, WallDesc::Shape> shapes[] = {
-      {"plane", WallDesc::Shape::plane}, {"box", WallDesc::Shape::box},
-      {"mesh", WallDesc::Shape::mesh},   {"sphere", WallDesc::Shape::sphere},
-      {"vdb", WallDesc::Shape::vdb}};
+  const std::pair<const char*, WallDesc::Shape> shapes[] = {{"plane", WallDesc::Shape::plane},
+                                                            {"box", WallDesc::Shape::box},
+                                                            {"mesh", WallDesc::Shape::mesh},
+                                                            {"sphere", WallDesc::Shape::sphere},
+                                                            {"vdb", WallDesc::Shape::vdb}};
   int given = 0;
   for (const auto& [name, shape] : shapes)
     if (r.has(name)) w.shape = shape, ++given;
@@ -152,8 +153,9 @@ WallDesc read_wall(ParamReader r, const std::filesystem::path& scene_dir) {
   }
   const bool collider = w.shape != WallDesc::Shape::plane && w.shape != WallDesc::Shape::box;
   if (r.has("angular_velocity") && !collider)
-    r.fail("angular_velocity", "only colliders (mesh, sphere, vdb) spin; a plane or box moves "
-                               "with 'velocity' or 'path'");
+    r.fail("angular_velocity",
+           "only colliders (mesh, sphere, vdb) spin; a plane or box moves "
+           "with 'velocity' or 'path'");
   w.angular_velocity = r.get_or("angular_velocity", w.angular_velocity);
   w.boundary = read_boundary(r);
   w.friction = r.get_or("friction", 0.0);

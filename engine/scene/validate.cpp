@@ -93,8 +93,8 @@ std::vector<std::string> objects_in_colliders(const Simulation& sim) {
     for (std::size_t o = 0; o < sim.objects().size(); ++o)
       if (inside_of[o] > 0)
         w.push_back("object '" + sim.objects()[o].name + "' overlaps the collider walls[" +
-                    std::to_string(k) + "] at the start: " + std::to_string(inside_of[o]) +
-                    " of " + std::to_string(sim.objects()[o].count) +
+                    std::to_string(k) + "] at the start: " + std::to_string(inside_of[o]) + " of " +
+                    std::to_string(sim.objects()[o].count) +
                     " particles lie inside it; the collider will push them out at once");
   }
   return w;

@@ -1,15 +1,15 @@
 #include "engine/step/colliders.h"
 
-#include <algorithm>
-#include <cmath>
-#include <limits>
-#include <string>
-
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Interpolation.h>
 #include <openvdb/tools/LevelSetRebuild.h>
 #include <openvdb/tools/MeshToVolume.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
 
 #include "engine/core/error.h"
 #include "engine/scene/mesh.h"

@@ -15,19 +15,19 @@ class LevelSetGrid;
 
 /// A collider's signed distance at one point, in its frame at t = 0.
 struct SdfSample {
-  Real phi = 0;            ///< Signed distance, m: negative inside the solid.
-  Vec3 normal{0, 0, 0};    ///< Unit outward normal (grad phi), or zero where phi is flat.
+  Real phi = 0;          ///< Signed distance, m: negative inside the solid.
+  Vec3 normal{0, 0, 0};  ///< Unit outward normal (grad phi), or zero where phi is flat.
 };
 
 /// Where a collider is at one time: x = center + rotation (x0 - rest center) for x0 in its
 /// frame at t = 0, moving with velocity + angular_velocity x (x - center).
 struct ColliderPose {
-  Mat3 rotation = Mat3::Identity();  ///< Rotation since t = 0.
-  Vec3 center{0, 0, 0};              ///< Spin centre now, m.
-  Vec3 rest_center{0, 0, 0};         ///< Spin centre at t = 0, m.
-  Vec3 velocity{0, 0, 0};            ///< Velocity of the spin centre, m/s.
-  Vec3 angular_velocity{0, 0, 0};    ///< rad/s.
-  Eigen::AlignedBox<Real, 3> bounds; ///< World box that holds every point with phi <= 0 now.
+  Mat3 rotation = Mat3::Identity();   ///< Rotation since t = 0.
+  Vec3 center{0, 0, 0};               ///< Spin centre now, m.
+  Vec3 rest_center{0, 0, 0};          ///< Spin centre at t = 0, m.
+  Vec3 velocity{0, 0, 0};             ///< Velocity of the spin centre, m/s.
+  Vec3 angular_velocity{0, 0, 0};     ///< rad/s.
+  Eigen::AlignedBox<Real, 3> bounds;  ///< World box that holds every point with phi <= 0 now.
 
   /// The point of the collider's t = 0 frame that is at world point x now.
   Vec3 to_rest(const Vec3& x) const { return rest_center + rotation.transpose() * (x - center); }
@@ -39,15 +39,15 @@ struct ColliderPose {
 /// read from a VDB file, with a wall condition (walls.h) on the grid nodes inside it.
 struct Collider {
   std::shared_ptr<const LevelSetGrid> level_set;  ///< Mesh or vdb; null for a sphere.
-  Real radius = 0;                   ///< Sphere radius, m.
-  Vec3 center{0, 0, 0};              ///< Spin centre at t = 0 (sphere centre, mesh offset,
-                                     ///< vdb bounding-box centre), m.
-  Eigen::AlignedBox<Real, 3> bounds; ///< Box holding every point with phi <= 0 at t = 0, m.
+  Real radius = 0;                                ///< Sphere radius, m.
+  /// Spin centre at t = 0 (sphere centre, mesh offset, vdb bounding-box centre), m.
+  Vec3 center{0, 0, 0};
+  Eigen::AlignedBox<Real, 3> bounds;     ///< Box holding every point with phi <= 0 at t = 0, m.
   Boundary boundary = Boundary::sticky;  ///< Condition on nodes inside.
-  Real friction = 0;                 ///< Coulomb coefficient.
-  Vec3 velocity{0, 0, 0};            ///< Constant velocity (when path is empty), m/s.
-  std::vector<WallKey> path;         ///< Keyframed offsets of the centre, linear in between.
-  Vec3 angular_velocity{0, 0, 0};    ///< Spin about the centre, rad/s.
+  Real friction = 0;                     ///< Coulomb coefficient.
+  Vec3 velocity{0, 0, 0};                ///< Constant velocity (when path is empty), m/s.
+  std::vector<WallKey> path;             ///< Keyframed offsets of the centre, linear in between.
+  Vec3 angular_velocity{0, 0, 0};        ///< Spin about the centre, rad/s.
 
   /// Signed distance and normal at x0, a point of the frame at t = 0.
   SdfSample sample(const Vec3& x0) const;

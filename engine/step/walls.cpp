@@ -54,9 +54,13 @@ Vec3 path_velocity(const Vec3& velocity, const std::vector<WallKey>& path, Real 
   return Vec3::Zero();
 }
 
-Vec3 WallPlane::offset(Real t) const { return path_offset(velocity, path, t); }
+Vec3 WallPlane::offset(Real t) const {
+  return path_offset(velocity, path, t);
+}
 
-Vec3 WallPlane::velocity_at(Real t) const { return path_velocity(velocity, path, t); }
+Vec3 WallPlane::velocity_at(Real t) const {
+  return path_velocity(velocity, path, t);
+}
 
 Real apply_walls(const std::vector<WallPlane>& planes, Real time, Grid& g) {
   struct Placed {

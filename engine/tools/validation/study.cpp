@@ -345,11 +345,11 @@ std::string study_csv(const std::vector<StudyRow>& rows) {
     const Outcome& o = r.outcome;
     const double steps = static_cast<double>(o.particles) * o.substeps;
     s << r.experiment << ',' << r.case_name << ',' << r.kernel << ',' << r.h << ',' << r.ppc << ','
-      << r.sampling << ',' << r.cfl << ',' << r.dt << ',' << r.transfer << ','
-      << kStoredPrecision << ',' << r.grid_precision << ',' << (r.simd ? "true" : "false") << ','
-      << r.setting.boundary.value_or("") << ',' << o.status << ",\"" << o.error_name << "\"," << o.error << ',' << o.particles << ',' << o.substeps << ',' << steps << ','
-      << o.seconds << ',' << (o.seconds > 0 ? steps / o.seconds : 0) << ','
-      << r.peak_rss_bytes / 1e6 << ",\"";
+      << r.sampling << ',' << r.cfl << ',' << r.dt << ',' << r.transfer << ',' << kStoredPrecision
+      << ',' << r.grid_precision << ',' << (r.simd ? "true" : "false") << ','
+      << r.setting.boundary.value_or("") << ',' << o.status << ",\"" << o.error_name << "\","
+      << o.error << ',' << o.particles << ',' << o.substeps << ',' << steps << ',' << o.seconds
+      << ',' << (o.seconds > 0 ? steps / o.seconds : 0) << ',' << r.peak_rss_bytes / 1e6 << ",\"";
     for (std::size_t i = 0; i < o.measures.size(); ++i)
       s << (i ? "; " : "") << o.measures[i].name << '=' << o.measures[i].value
         << (o.measures[i].exact != 0 ? " (exact " : "")
