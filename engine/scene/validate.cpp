@@ -88,7 +88,7 @@ std::vector<std::string> objects_in_colliders(const Simulation& sim) {
     const ColliderPose pose = col.pose(0);
     std::vector<std::size_t> inside_of(sim.objects().size(), 0);
     for (std::size_t q = 0; q < p.size(); ++q)
-      if (pose.bounds.contains(p.x[q]) && col.sample(pose.to_rest(p.x[q])).phi < 0)
+      if (pose.bounds.contains(p.x[q]) && col.phi(pose.to_rest(p.x[q])) < 0)
         ++inside_of[p.object[q]];
     for (std::size_t o = 0; o < sim.objects().size(); ++o)
       if (inside_of[o] > 0)

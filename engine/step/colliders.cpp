@@ -49,6 +49,13 @@ class LevelSetGrid {
     return s;
   }
 
+  /// Trilinear phi alone at world point x.
+  Real phi(const Vec3& x) const {
+    auto acc = grid_->getConstUnsafeAccessor();
+    const openvdb::Vec3d ijk = grid_->transform().worldToIndex(openvdb::Vec3d(x.x(), x.y(), x.z()));
+    return static_cast<Real>(openvdb::tools::BoxSampler::sample(acc, ijk));
+  }
+
   /// World box of the active voxels, m.
   const Eigen::AlignedBox<Real, 3>& bounds() const { return bounds_; }
 
@@ -166,6 +173,10 @@ SdfSample Collider::sample(const Vec3& x0) const {
   return {r - radius, r > 0 ? Vec3(d / r) : Vec3::UnitY()};
 }
 
+Real Collider::phi(const Vec3& x0) const {
+  return level_set ? level_set->phi(x0) : (x0 - center).norm() - radius;
+}
+
 ColliderPose Collider::pose(Real t) const {
   ColliderPose p;
   const Real w = angular_velocity.norm();
@@ -204,8 +215,9 @@ Real apply_colliders(const std::vector<Collider>& colliders, Real time, Grid& g)
     for (std::size_t c = 0; c < colliders.size(); ++c) {
       const ColliderPose& p = poses[c];
       if (!p.bounds.contains(x)) continue;  // only the nodes near a collider pay for it
-      const SdfSample s = colliders[c].sample(p.to_rest(x));
-      if (s.phi > 0) continue;
+      const Vec3 x0 = p.to_rest(x);
+      if (colliders[c].phi(x0) > 0) continue;  // the normal only where it is needed
+      const SdfSample s = colliders[c].sample(x0);
       // The wall condition in the collider's frame (Stomakhin et al. 2013, sec. 8): on the
       // velocity relative to the collider's velocity at the node, v_c = v + w x (x - c). A
       // node where phi is flat has no normal (it cannot happen with the filled interiors
