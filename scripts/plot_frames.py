@@ -22,7 +22,7 @@ import yaml
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.patches import Polygon  # noqa: E402
+from matplotlib.patches import Circle, Polygon  # noqa: E402
 
 WALL_COLOUR = "#555555"
 SOLID_SHADE = "#bbbbbb"
@@ -118,6 +118,12 @@ def draw_walls(ax, walls, t, lo, hi):
                                  zorder=0))
             ax.add_patch(Polygon(rect, closed=True, fill=False, ec=WALL_COLOUR, lw=1.0,
                                  zorder=1))
+        elif "sphere" in wall:  # its x-y section through the centre
+            c = [a + b for a, b in zip(vec(wall["sphere"]["center"], "sphere center"), off)]
+            ax.add_patch(Circle((c[0], c[1]), float(wall["sphere"]["radius"]), fc=SOLID_SHADE,
+                                ec=WALL_COLOUR, lw=1.0, alpha=0.5, zorder=0))
+        else:  # mesh and vdb colliders are not drawn: named in the title instead
+            hidden.append("%s %d" % ("mesh" if "mesh" in wall else "vdb", k))
     return hidden
 
 

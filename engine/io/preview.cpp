@@ -1,17 +1,19 @@
 #include "engine/io/preview.h"
 
-#include "engine/io/atomic_file.h"
-#include "engine/step/walls.h"
-
 #include <png.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <stdexcept>
 #include <string>
 #include <system_error>
+
+#include "engine/io/atomic_file.h"
+#include "engine/scene/mesh.h"
+#include "engine/step/walls.h"
 
 namespace mpm {
 
@@ -220,7 +222,7 @@ void fill_plane(Canvas& c, const Vec3& point, const Vec3& n, const Vec3& lo, con
 /// Draws `walls` onto a picture whose particles are already drawn: lines first (hidden by
 /// particles in front), then the planes' checkerboards over whatever lies behind them.
 void draw_walls(Canvas& c, const PreviewWalls& walls) {
-  if (walls.walls.empty()) return;
+  if (walls.walls.empty() && walls.collider_edges.empty()) return;
   c.line_depth.assign(c.depth.size(), std::numeric_limits<float>::infinity());
   const double radius = 0.75 * std::max(1.0, c.img.height / 480.0);
   const Vec3 lo = walls.clip_min, hi = walls.clip_max;
@@ -234,14 +236,53 @@ void draw_walls(Canvas& c, const PreviewWalls& walls) {
         for (int axis = 0; axis < 3; ++axis)
           if (!(k & (1 << axis)))
             draw_segment(c, corner(k), corner(k | (1 << axis)), radius, kPreviewWallLine);
-    } else {
+    } else if (w.shape == WallDesc::Shape::plane) {  // colliders are not drawn yet
       const std::vector<Vec3> cut = plane_cut(w.point, w.normal.normalized(), lo, hi);
       for (std::size_t k = 0; k < cut.size(); ++k)
         draw_segment(c, cut[k], cut[(k + 1) % cut.size()], radius, kPreviewWallLine);
     }
   }
+  for (const auto& [a, b] : walls.collider_edges) draw_segment(c, a, b, radius, kPreviewWallLine);
   for (const WallDesc& w : walls.walls)
     if (w.shape == WallDesc::Shape::plane) fill_plane(c, w.point, w.normal.normalized(), lo, hi);
+}
+
+/// The segments that outline collider `w` in its frame at t = 0: a mesh's feature edges
+/// (faces meeting at more than 20 degrees, or open), a sphere's great circles about x, y, z.
+std::vector<std::pair<Vec3, Vec3>> collider_outline(const WallDesc& w) {
+  std::vector<std::pair<Vec3, Vec3>> out;
+  if (w.shape == WallDesc::Shape::sphere) {
+    constexpr int kSegments = 48;
+    for (int a = 0; a < 3; ++a) {
+      const Vec3 u = Vec3::Unit((a + 1) % 3), v = Vec3::Unit((a + 2) % 3);
+      auto at = [&](int k) {
+        const double t = 2 * std::numbers::pi * k / kSegments;
+        return Vec3(w.center + w.radius * (std::cos(t) * u + std::sin(t) * v));
+      };
+      for (int k = 0; k < kSegments; ++k) out.emplace_back(at(k), at(k + 1));
+    }
+    return out;
+  }
+  if (w.shape != WallDesc::Shape::mesh) return out;
+  TriangleMesh mesh;
+  try {
+    mesh = load_mesh(w.file);
+  } catch (const MeshError&) {
+    return out;  // the simulation has read it already; a file gone since is not drawn
+  }
+  transform_mesh(mesh, w.scale, w.rotation_deg, w.offset);
+  std::map<std::pair<int, int>, std::vector<Vec3>> normals;  // per edge, its faces' normals
+  for (const auto& t : mesh.triangles) {
+    const Vec3 n = (mesh.vertices[t[1]] - mesh.vertices[t[0]])
+                       .cross(mesh.vertices[t[2]] - mesh.vertices[t[0]])
+                       .normalized();
+    for (int e = 0; e < 3; ++e) normals[std::minmax(t[e], t[(e + 1) % 3])].push_back(n);
+  }
+  const double cos_feature = std::cos(20 * std::numbers::pi / 180);
+  for (const auto& [edge, n] : normals)
+    if (n.size() != 2 || std::abs(n[0].dot(n[1])) < cos_feature)
+      out.emplace_back(mesh.vertices[edge.first], mesh.vertices[edge.second]);
+  return out;
 }
 
 }  // namespace
@@ -251,6 +292,18 @@ PreviewWalls preview_walls(const SceneDesc& scene, double time) {
   out.clip_min = scene.grid.origin;
   out.clip_max = scene.grid.max;
   for (const WallDesc& w : scene.walls) {
+    if (w.shape != WallDesc::Shape::plane && w.shape != WallDesc::Shape::box) {
+      // As Collider::pose: turned by |w| t about the spin centre, which moves along the path.
+      const Vec3 centre = w.shape == WallDesc::Shape::sphere ? w.center : w.offset;
+      const Vec3 shift = path_offset(w.velocity, w.path, static_cast<Real>(time));
+      const double spin = w.angular_velocity.norm();
+      const Mat3 r = spin > 0 ? Mat3(Eigen::AngleAxis<Real>(spin * time, w.angular_velocity / spin))
+                              : Mat3(Mat3::Identity());
+      for (const auto& [a, b] : collider_outline(w))
+        out.collider_edges.emplace_back(centre + shift + r * (a - centre),
+                                        centre + shift + r * (b - centre));
+      continue;
+    }
     // The walls stage moves every plane of a wall by the same offset (build_wall_planes).
     const WallPlane motion{w.point, w.normal, w.boundary, static_cast<Real>(w.friction),
                            w.velocity, w.path};

@@ -82,10 +82,14 @@ struct PreviewWalls {
   std::vector<WallDesc> walls;    ///< Planes and boxes, already moved to their place (m).
   Vec3 clip_min = Vec3::Zero();   ///< Planes are drawn where they cut this box (the grid), m.
   Vec3 clip_max = Vec3::Ones();   ///< Maximum corner of that box, m.
+  /// Colliders as line segments where they are: a mesh's feature edges, a sphere's three
+  /// great circles (a vdb collider is not drawn), m.
+  std::vector<std::pair<Vec3, Vec3>> collider_edges;
 };
 
 /// The walls of `scene` at time `time` (a moving wall displaced as the walls stage moves it,
-/// engine/step/walls.h), clipped to the grid box.
+/// engine/step/walls.h; a collider moved and turned as engine/step/colliders.h places it),
+/// clipped to the grid box. Reads each mesh collider's file again.
 PreviewWalls preview_walls(const SceneDesc& scene, double time);
 
 /// Renders the particles of `frame` (position and object_id; velocity and J are not used, and

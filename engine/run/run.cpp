@@ -168,7 +168,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       if (steps.substeps == 0) steps.dt_min = 0;
       result.steps.push_back(steps);
       if (result.status != "ok") break;
-      // Energy may only grow by the work moving walls do on the bodies.
+      // Energy may only grow by the work moving walls and colliders do on the bodies.
       t0 = clock::now();
       const Real energy = sim.total_energy() - sim.wall_work();
       result.energy_max = std::max(result.energy_max, energy);
@@ -176,9 +176,10 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       const Real scale = std::max(std::abs(result.energy_start), std::abs(sim.wall_work()));
       if (energy > result.energy_start + kEnergyGrowthLimit * scale + 1e-9) {
         char buf[200];
-        std::snprintf(buf, sizeof buf,
-                      "total energy less the work of moving walls grew from %.4g J to %.4g J",
-                      static_cast<double>(result.energy_start), static_cast<double>(energy));
+        std::snprintf(
+            buf, sizeof buf,
+            "total energy less the work of moving walls and colliders grew from %.4g J to %.4g J",
+            static_cast<double>(result.energy_start), static_cast<double>(energy));
         fail({buf, ""}, f);
         break;
       }

@@ -93,28 +93,70 @@ Boundary read_boundary(ParamReader& r) {
                                                {"separate", Boundary::separate}});
 }
 
-WallDesc read_wall(ParamReader r) {
+/// Reads a collider's file path, relative to the scene's folder unless absolute.
+std::filesystem::path read_collider_file(ParamReader& r, const std::filesystem::path& scene_dir) {
+  std::filesystem::path file = r.require<std::string>("file");
+  if (file.empty()) r.fail("file", "the file name must not be empty");
+  return file.is_relative() ? scene_dir / file : file;
+}
+
+WallDesc read_wall(ParamReader r, const std::filesystem::path& scene_dir) {
   WallDesc w;
   w.loc = r.loc();
-  const bool plane = r.has("plane"), box = r.has("box");
-  if (plane == box) r.fail("", "a wall needs exactly one of 'plane' or 'box'");
-  if (plane) {
-    w.shape = WallDesc::Shape::plane;
+  const std::pair<const char*, WallDesc::Shape> shapes[] = {{"plane", WallDesc::Shape::plane},
+                                                            {"box", WallDesc::Shape::box},
+                                                            {"mesh", WallDesc::Shape::mesh},
+                                                            {"sphere", WallDesc::Shape::sphere},
+                                                            {"vdb", WallDesc::Shape::vdb}};
+  int given = 0;
+  for (const auto& [name, shape] : shapes)
+    if (r.has(name)) w.shape = shape, ++given;
+  if (given != 1)
+    r.fail("", "a wall needs exactly one of 'plane', 'box', 'mesh', 'sphere' or 'vdb'");
+  if (w.shape == WallDesc::Shape::plane) {
     ParamReader p = r.child("plane");
     w.point = p.require<Vec3>("point");
     w.normal = p.require<Vec3>("normal");
     if (w.normal.stableNorm() < 1e-12) p.fail("normal", "the normal must not be zero");
     w.normal.stableNormalize();  // stable: norm() of [1e300, 0, 0] overflows to inf
     p.finish();
-  } else {
-    w.shape = WallDesc::Shape::box;
+  } else if (w.shape == WallDesc::Shape::box) {
     ParamReader b = r.child("box");
     w.min = b.require<Vec3>("min");
     w.max = b.require<Vec3>("max");
     for (int a = 0; a < 3; ++a)
       if (w.max[a] <= w.min[a]) b.fail("max", "each component must exceed min's");
     b.finish();
+  } else if (w.shape == WallDesc::Shape::mesh) {
+    ParamReader m = r.child("mesh");
+    w.file = read_collider_file(m, scene_dir);
+    w.file_loc = m.loc("file");
+    w.scale = m.get_vec3_or_scalar("scale", w.scale);
+    for (int a = 0; a < 3; ++a)
+      if (w.scale[a] == 0) m.fail("scale", "scale must not be zero");
+    w.rotation_deg = m.get_or("rotation", w.rotation_deg);
+    w.offset = m.get_or("offset", w.offset);
+    m.finish();
+  } else if (w.shape == WallDesc::Shape::sphere) {
+    ParamReader s = r.child("sphere");
+    w.center = s.require<Vec3>("center");
+    w.radius = s.require<double>("radius");
+    s.check_range("radius", w.radius, 0, 1e300, true);
+    s.finish();
+  } else {
+    ParamReader v = r.child("vdb");
+    w.file = read_collider_file(v, scene_dir);
+    w.file_loc = v.loc("file");
+    w.grid_name = v.require<std::string>("grid");
+    w.grid_loc = v.loc("grid");
+    v.finish();
   }
+  const bool collider = w.shape != WallDesc::Shape::plane && w.shape != WallDesc::Shape::box;
+  if (r.has("angular_velocity") && !collider)
+    r.fail("angular_velocity",
+           "only colliders (mesh, sphere, vdb) spin; a plane or box moves "
+           "with 'velocity' or 'path'");
+  w.angular_velocity = r.get_or("angular_velocity", w.angular_velocity);
   w.boundary = read_boundary(r);
   w.friction = r.get_or("friction", 0.0);
   w.velocity = r.get_or("velocity", w.velocity);
@@ -289,7 +331,7 @@ SceneDesc read_scene(const YAML::Node& root, const std::filesystem::path& file,
   const YAML::Node walls = r.sequence("walls");
   for (std::size_t i = 0; i < walls.size(); ++i)
     scene.walls.push_back(
-        read_wall(ParamReader(walls[i], fname, "walls[" + std::to_string(i) + "]")));
+        read_wall(ParamReader(walls[i], fname, "walls[" + std::to_string(i) + "]"), dir));
 
   if (r.has("output")) scene.output = read_output(r.child("output"));
   r.finish();

@@ -87,14 +87,25 @@ struct WallKey {
   Vec3 offset{0, 0, 0};        ///< Displacement from the scene position, m.
 };
 
-/// A wall acting on grid velocities.
+/// A wall acting on grid velocities: a plane, a box, or a solid collider (mesh, sphere, vdb).
 struct WallDesc {
-  enum class Shape { plane, box };
-  Shape shape = Shape::plane;      ///< Plane or box of six inward planes.
+  /// plane, box: half-spaces; mesh, sphere, vdb: solid colliders given by a signed distance.
+  enum class Shape { plane, box, mesh, sphere, vdb };
+  Shape shape = Shape::plane;      ///< Which kind of wall.
   Vec3 point{0, 0, 0};             ///< Plane: a point on it, m.
   Vec3 normal{0, 1, 0};            ///< Plane: unit normal pointing into the free side.
   Vec3 min{0, 0, 0};               ///< Box: minimum corner, m.
   Vec3 max{1, 1, 1};               ///< Box: maximum corner, m.
+  std::filesystem::path file;      ///< Mesh or vdb: absolute or scene-relative path, resolved.
+  FileLoc file_loc;                ///< Where `file` is written.
+  std::string grid_name;           ///< Vdb: name of the level set grid in the file.
+  FileLoc grid_loc;                ///< Where `grid` is written.
+  Vec3 scale{1, 1, 1};             ///< Mesh: scale per axis, applied first.
+  Vec3 rotation_deg{0, 0, 0};      ///< Mesh: degrees about x, then y, then z.
+  Vec3 offset{0, 0, 0};            ///< Mesh: where the mesh origin goes (its spin centre), m.
+  Vec3 center{0, 0, 0};            ///< Sphere: centre, m.
+  double radius = 0;               ///< Sphere: radius, m.
+  Vec3 angular_velocity{0, 0, 0};  ///< Collider spin about its offset or centre, rad/s.
   Boundary boundary = Boundary::sticky;  ///< Condition.
   double friction = 0;             ///< Coulomb coefficient (slip and separate).
   Vec3 velocity{0, 0, 0};          ///< Constant velocity of the wall (it moves), m/s.

@@ -75,6 +75,76 @@ std::vector<std::string> objects_in_walls(const Simulation& sim) {
   return w;
 }
 
+/// Per collider and object, the particles that start inside the collider (phi < 0).
+std::vector<std::string> objects_in_colliders(const Simulation& sim) {
+  std::vector<std::string> w;
+  const Particles& p = sim.particles();
+  const std::vector<WallDesc>& walls = sim.scene().walls;
+  std::size_t c = 0;
+  for (std::size_t k = 0; k < walls.size(); ++k) {
+    if (walls[k].shape == WallDesc::Shape::plane || walls[k].shape == WallDesc::Shape::box)
+      continue;
+    const Collider& col = sim.colliders()[c++];
+    const ColliderPose pose = col.pose(0);
+    std::vector<std::size_t> inside_of(sim.objects().size(), 0);
+    for (std::size_t q = 0; q < p.size(); ++q)
+      if (pose.bounds.contains(p.x[q]) && col.phi(pose.to_rest(p.x[q])) < 0)
+        ++inside_of[p.object[q]];
+    for (std::size_t o = 0; o < sim.objects().size(); ++o)
+      if (inside_of[o] > 0)
+        w.push_back("object '" + sim.objects()[o].name + "' overlaps the collider walls[" +
+                    std::to_string(k) + "] at the start: " + std::to_string(inside_of[o]) + " of " +
+                    std::to_string(sim.objects()[o].count) +
+                    " particles lie inside it; the collider will push them out at once");
+  }
+  return w;
+}
+
+/// Per object and grid side, the particles whose kernel stencil reaches the nodes of the
+/// grid's boundary buffer where no plane or box wall covers them: apply_domain_boundary then
+/// stops the body's outward node velocities there like a hidden wall (docs/validation.md).
+std::vector<std::string> objects_near_buffer(const Simulation& sim) {
+  std::vector<std::string> w;
+  const Grid& g = sim.grid();
+  const Particles& p = sim.particles();
+  const SceneDesc& scene = sim.scene();
+  const Real reach = scene.simulation.kernel == Kernel::linear      ? 1.0
+                     : scene.simulation.kernel == Kernel::quadratic ? 1.5
+                                                                    : 2.0;
+  const std::vector<WallPlane> planes = build_wall_planes(scene.walls);
+  const char* axis_name = "xyz";
+  for (int a = 0; a < 3; ++a)
+    for (int side = 0; side < 2; ++side) {
+      // The buffer's innermost node layer on this side, in grid units and in metres.
+      const Real layer = side == 0 ? g.buffer : g.nodes[a] - 1 - g.buffer;
+      const Real layer_x = g.origin[a] + layer * g.h[a];
+      // A wall whose solid side holds the buffer's layer already acts on those nodes.
+      bool covered = false;
+      for (const WallPlane& pl : planes) {
+        const Vec3 inward = side == 0 ? Vec3(Vec3::Unit(a)) : Vec3(-Vec3::Unit(a));
+        const Real at = (pl.point + pl.offset(0))[a];
+        const Real slack = 1e-9 * g.h[a];  // a wall written at the layer's coordinate
+        if (pl.normal.dot(inward) > 1 - 1e-9 &&
+            (side == 0 ? at >= layer_x - slack : at <= layer_x + slack))
+          covered = true;
+      }
+      if (covered) continue;
+      std::vector<std::size_t> near(sim.objects().size(), 0);
+      for (std::size_t q = 0; q < p.size(); ++q) {
+        const Real c = (p.x[q][a] - g.origin[a]) * g.inv_h[a];
+        if (side == 0 ? c - layer < reach : layer - c < reach) ++near[p.object[q]];
+      }
+      for (std::size_t o = 0; o < sim.objects().size(); ++o)
+        if (near[o] > 0)
+          w.push_back("object '" + sim.objects()[o].name + "': " + std::to_string(near[o]) +
+                      " particles lie within " + fmt("%g", reach) +
+                      " cells of the grid's boundary buffer at " + axis_name[a] + " = " +
+                      fmt("%g", layer_x) + " m, with no wall there: the buffer will stop " +
+                      "their outward motion like a hidden wall; enlarge the grid");
+    }
+  return w;
+}
+
 }  // namespace
 
 std::vector<std::string> scene_warnings(Simulation& sim) {
@@ -84,6 +154,8 @@ std::vector<std::string> scene_warnings(Simulation& sim) {
     w.push_back("objects '" + sim.objects()[a].name + "' and '" + sim.objects()[b].name +
                 "' overlap at the start (they share grid cells)");
   for (std::string& line : objects_in_walls(sim)) w.push_back(std::move(line));
+  for (std::string& line : objects_in_colliders(sim)) w.push_back(std::move(line));
+  for (std::string& line : objects_near_buffer(sim)) w.push_back(std::move(line));
   const Real bound = sim.cfl_bound(1.0);
   if (!scene.simulation.cfl && scene.simulation.dt && *scene.simulation.dt > bound)
     w.push_back(fmt("simulation.dt = %g s is above the CFL bound h / (c + |v|max) = %.3g s at "

@@ -168,6 +168,8 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     sim->objects_.push_back(info);
   }
   sim->walls_ = build_wall_planes(scene.walls);
+  // Mesh level sets get voxels of half the cell size.
+  sim->colliders_ = build_colliders(scene.walls, sim->grid_.h.minCoeff() / 2);
   sim->build_stages();
   return sim;
 }
@@ -236,6 +238,9 @@ void Simulation::build_stages() {
   // Walls act on the grid velocities of the end of the substep: place them at time + dt.
   if (!walls_.empty())
     add("walls", [this](Real dt) { wall_work_ += apply_walls(walls_, time_ + dt, grid_); });
+  if (!colliders_.empty())
+    add("colliders",
+        [this](Real dt) { wall_work_ += apply_colliders(colliders_, time_ + dt, grid_); });
   add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
   add("grid_to_particles", [this](Real dt) {
     const SimulationDesc& sd = scene_.simulation;

@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "engine/step/colliders.h"
 #include "engine/step/grid.h"
 #include "engine/core/particles.h"
 #include "engine/scene/scene_desc.h"
@@ -99,7 +100,9 @@ class Simulation {
   std::size_t fastest_particle() const;
   /// The object particle `q` belongs to.
   const ObjectInfo& object_of(std::size_t q) const { return objects_[particles_.object[q]]; }
-  /// Work done on the bodies by moving walls since the start, J.
+  /// The solid colliders (mesh, sphere and vdb walls), in scene order.
+  const std::vector<Collider>& colliders() const { return colliders_; }
+  /// Work done on the bodies by moving walls and colliders since the start, J.
   Real wall_work() const { return wall_work_; }
   /// Particles clamped back into the grid interior, over the whole run.
   std::size_t clamped_particles() const { return clamped_total_; }
@@ -121,6 +124,7 @@ class Simulation {
   std::vector<ObjectInfo> objects_;
   std::vector<MaterialRange> materials_;
   std::vector<WallPlane> walls_;
+  std::vector<Collider> colliders_;
   std::vector<Stage> stages_;
   double bound_seconds_ = 0;
   Real time_ = 0;

@@ -11,6 +11,7 @@ std::vector<WallPlane> build_wall_planes(const std::vector<WallDesc>& walls) {
       planes.push_back({w.point, w.normal, w.boundary, w.friction, w.velocity, w.path});
       continue;
     }
+    if (w.shape != WallDesc::Shape::box) continue;  // a collider (engine/step/colliders.h)
     for (int a = 0; a < 3; ++a) {
       const Vec3 n = Vec3::Unit(a);
       planes.push_back({w.min, n, w.boundary, w.friction, w.velocity, w.path});
@@ -34,7 +35,7 @@ Vec3 wall_velocity(const Vec3& v, const Vec3& n, Boundary b, Real friction) {
   return vt;
 }
 
-Vec3 WallPlane::offset(Real t) const {
+Vec3 path_offset(const Vec3& velocity, const std::vector<WallKey>& path, Real t) {
   if (path.empty()) return t * velocity;
   if (t <= path.front().t) return path.front().offset;
   for (std::size_t k = 1; k < path.size(); ++k)
@@ -45,12 +46,20 @@ Vec3 WallPlane::offset(Real t) const {
   return path.back().offset;
 }
 
-Vec3 WallPlane::velocity_at(Real t) const {
+Vec3 path_velocity(const Vec3& velocity, const std::vector<WallKey>& path, Real t) {
   if (path.empty()) return velocity;
   for (std::size_t k = 1; k < path.size(); ++k)
     if (t > path[k - 1].t && t <= path[k].t)
       return (path[k].offset - path[k - 1].offset) / (path[k].t - path[k - 1].t);
   return Vec3::Zero();
+}
+
+Vec3 WallPlane::offset(Real t) const {
+  return path_offset(velocity, path, t);
+}
+
+Vec3 WallPlane::velocity_at(Real t) const {
+  return path_velocity(velocity, path, t);
 }
 
 Real apply_walls(const std::vector<WallPlane>& planes, Real time, Grid& g) {

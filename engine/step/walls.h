@@ -23,7 +23,14 @@ struct WallPlane {
   Vec3 velocity_at(Real t) const;
 };
 
-/// The planes of every wall in the scene (a box gives six inward planes).
+/// Displacement at time t of a wall that moves with constant `velocity` or along `path`
+/// (keyframed offsets, linear in between, held after the last), m.
+Vec3 path_offset(const Vec3& velocity, const std::vector<WallKey>& path, Real t);
+/// Velocity at time t of a wall that moves with constant `velocity` or along `path`, m/s.
+Vec3 path_velocity(const Vec3& velocity, const std::vector<WallKey>& path, Real t);
+
+/// The planes of the scene's plane and box walls (a box gives six inward planes); colliders
+/// are built by build_colliders (engine/step/colliders.h).
 std::vector<WallPlane> build_wall_planes(const std::vector<WallDesc>& walls);
 
 /// Applies each plane's condition, at time `time`, to the active nodes inside it. A moving

@@ -424,3 +424,25 @@ TEST_CASE("scene: an object that starts inside a wall is warned about", "[scene]
   CHECK_THAT(box, Contains("outside the box from [0.1, 0.1, 0.1] to [0.9, 0.9, 0.45]"));
   CHECK_THAT(box, !Contains("walls[0]"));
 }
+
+TEST_CASE("scene: a body within the kernel's reach of the grid's buffer is warned about",
+          "[scene]") {
+  // h = 0.05 and a 3-cell buffer: the buffer's innermost node layer is y = 0.15. The cube's
+  // bottom at y = 0.18 is 0.6 cells from it, inside the quadratic kernel's 1.5.
+  const auto warnings_of = [](const std::string& object_extra, const std::string& walls) {
+    std::string yaml = minimal_scene(object_extra) + walls;
+    const std::string at = "offset: [0.5, 0.5, 0.5]";
+    yaml.replace(yaml.find(at), at.size(), "offset: [0.5, 0.28, 0.5]");
+    const SceneDesc s = scene_from(yaml);
+    std::unique_ptr<Simulation> sim = Simulation::create(s, builtin_registry());
+    std::string all;
+    for (const std::string& w : scene_warnings(*sim)) all += w + "\n";
+    return all;
+  };
+  CHECK_THAT(warnings_of("", ""), Contains("particles lie within 1.5 cells of the grid's boundary "
+                                           "buffer at y = 0.15 m, with no wall there"));
+  // A floor at the buffer's layer or above holds those nodes already; one below does not.
+  CHECK(warnings_of("", "walls:\n  - plane: {point: [0, 0.15, 0], normal: [0, 1, 0]}\n") == "");
+  CHECK_THAT(warnings_of("", "walls:\n  - plane: {point: [0, 0.1, 0], normal: [0, 1, 0]}\n"),
+             Contains("boundary buffer at y = 0.15 m"));
+}

@@ -101,6 +101,21 @@ std::vector<Setting> speed_options(std::vector<int> levels, Setting base,
   return out;
 }
 
+/// The incline cases (issue 16): every transfer on a `slip` and a `separate` floor at each of
+/// `levels`.
+std::vector<Setting> incline_sweep(std::vector<int> levels) {
+  std::vector<Setting> out;
+  for (Setting at_h : over_refine(levels))
+    for (const char* boundary : {"slip", "separate"})
+      for (const char* t : {"pic", "apic", "flip", "mls"}) {
+        Setting s = at_h;
+        s.boundary = boundary;
+        s.transfer = t;
+        out.push_back(s);
+      }
+  return out;
+}
+
 /// 1, 8 and 27 particles per cell, each on a lattice and jittered.
 std::vector<Setting> ppc_sweep(Setting base) {
   std::vector<Setting> out;
@@ -143,6 +158,10 @@ const std::vector<Experiment>& experiments() {
         {"column_h", "resting_column", over_refine({1, 2, 4}), {}},
         {"collision", "sphere_collision", over_transfers({}), over_refine({1})},
         {"compression", "uniaxial_compression", over_refine({1, 2}), {}},
+        // Issue 16: h-convergence of the incline cases, per floor and transfer.
+        {"incline_sliding", "sliding_block", incline_sweep({1, 2}), {}},
+        {"incline_sticking", "sticking_block", incline_sweep({1, 2}), {}},
+        {"incline_rolling", "rolling_ball", incline_sweep({1, 2}), {}},
         // Issue 15: mls against apic, the float grid against double, SIMD against scalar.
         // Kept out of --quick: about 10 minutes together on a loaded 2-core machine.
         {"speed_bar", "bar_vibration", speed_options({1, 2}, {}, pic_flip), {}},
@@ -179,6 +198,7 @@ std::vector<SceneOverride> overrides_for(const Setting& s, const SceneDesc& scen
   if (s.frames) o.push_back({"simulation.frames", std::to_string(*s.frames)});
   if (s.grid_precision) o.push_back({"grid.precision", *s.grid_precision});
   if (s.simd) o.push_back({"simulation.simd", *s.simd ? "true" : "false"});
+  if (s.boundary) o.push_back({"walls[0].boundary", *s.boundary});
   return o;
 }
 
@@ -310,6 +330,7 @@ std::string setting_label(const StudyRow& r) {
   // Only where the sweep sets them, so the other sweeps' labels end in the transfer.
   if (r.setting.grid_precision) s << " grid=" << r.grid_precision;
   if (r.setting.simd) s << (r.simd ? " simd" : " scalar");
+  if (r.setting.boundary) s << " floor=" << *r.setting.boundary;
   return s.str();
 }
 
@@ -317,18 +338,18 @@ std::string study_csv(const std::vector<StudyRow>& rows) {
   std::ostringstream s;
   s.precision(9);
   s << "experiment,case,kernel,h,ppc,sampling,cfl,dt,transfer,precision,grid_precision,simd,"
-       "status,error_name,error,"
+       "floor,status,error_name,error,"
        "particles,substeps,particle_steps,wall_seconds,particle_steps_per_second,peak_rss_mb,"
        "measures\n";
   for (const StudyRow& r : rows) {
     const Outcome& o = r.outcome;
     const double steps = static_cast<double>(o.particles) * o.substeps;
     s << r.experiment << ',' << r.case_name << ',' << r.kernel << ',' << r.h << ',' << r.ppc << ','
-      << r.sampling << ',' << r.cfl << ',' << r.dt << ',' << r.transfer << ','
-      << kStoredPrecision << ',' << r.grid_precision << ',' << (r.simd ? "true" : "false") << ','
-      << o.status << ",\"" << o.error_name << "\"," << o.error << ',' << o.particles << ',' << o.substeps << ',' << steps << ','
-      << o.seconds << ',' << (o.seconds > 0 ? steps / o.seconds : 0) << ','
-      << r.peak_rss_bytes / 1e6 << ",\"";
+      << r.sampling << ',' << r.cfl << ',' << r.dt << ',' << r.transfer << ',' << kStoredPrecision
+      << ',' << r.grid_precision << ',' << (r.simd ? "true" : "false") << ','
+      << r.setting.boundary.value_or("") << ',' << o.status << ",\"" << o.error_name << "\","
+      << o.error << ',' << o.particles << ',' << o.substeps << ',' << steps << ',' << o.seconds
+      << ',' << (o.seconds > 0 ? steps / o.seconds : 0) << ',' << r.peak_rss_bytes / 1e6 << ",\"";
     for (std::size_t i = 0; i < o.measures.size(); ++i)
       s << (i ? "; " : "") << o.measures[i].name << '=' << o.measures[i].value
         << (o.measures[i].exact != 0 ? " (exact " : "")

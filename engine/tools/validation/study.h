@@ -25,6 +25,7 @@ struct Setting {
   std::optional<int> frames;          ///< simulation.frames.
   std::optional<std::string> grid_precision;  ///< grid.precision: float or double.
   std::optional<bool> simd;           ///< simulation.simd: SIMD (true) or scalar transfers.
+  std::optional<std::string> boundary;  ///< walls[0].boundary: sticky, slip or separate.
 };
 
 /// One run of a study: what was set and what came out.

@@ -1,0 +1,243 @@
+#include "engine/step/colliders.h"
+
+#include <openvdb/io/File.h>
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/Interpolation.h>
+#include <openvdb/tools/LevelSetRebuild.h>
+#include <openvdb/tools/MeshToVolume.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "engine/core/error.h"
+#include "engine/scene/mesh.h"
+#include "engine/step/walls.h"
+
+namespace mpm {
+
+class LevelSetGrid {
+ public:
+  /// Wraps a float level set; bounds() is the world box of its active voxels.
+  explicit LevelSetGrid(openvdb::FloatGrid::ConstPtr grid) : grid_(std::move(grid)) {
+    const openvdb::CoordBBox active = grid_->evalActiveVoxelBoundingBox();
+    const openvdb::BBoxd box = grid_->transform().indexToWorld(active);
+    bounds_ = {Vec3(box.min().x(), box.min().y(), box.min().z()),
+               Vec3(box.max().x(), box.max().y(), box.max().z())};
+    step_ = 0.5 * grid_->voxelSize()[0];
+  }
+
+  /// Trilinear phi (OpenVDB BoxSampler) and its gradient by central differences half a voxel
+  /// apart, at world point x. Thread-safe: each call uses its own unregistered accessor.
+  SdfSample sample(const Vec3& x) const {
+    auto acc = grid_->getConstUnsafeAccessor();
+    const openvdb::math::Transform& xf = grid_->transform();
+    auto phi_at = [&](const Vec3& p) {
+      const openvdb::Vec3d ijk = xf.worldToIndex(openvdb::Vec3d(p.x(), p.y(), p.z()));
+      return static_cast<Real>(openvdb::tools::BoxSampler::sample(acc, ijk));
+    };
+    SdfSample s;
+    s.phi = phi_at(x);
+    Vec3 grad;
+    for (int a = 0; a < 3; ++a) {
+      const Vec3 e = step_ * Vec3::Unit(a);
+      grad[a] = (phi_at(x + e) - phi_at(x - e)) / (2 * step_);
+    }
+    const Real norm = grad.norm();
+    s.normal = norm > 1e-6 ? Vec3(grad / norm) : Vec3::Zero();
+    return s;
+  }
+
+  /// Trilinear phi alone at world point x.
+  Real phi(const Vec3& x) const {
+    auto acc = grid_->getConstUnsafeAccessor();
+    const openvdb::Vec3d ijk = grid_->transform().worldToIndex(openvdb::Vec3d(x.x(), x.y(), x.z()));
+    return static_cast<Real>(openvdb::tools::BoxSampler::sample(acc, ijk));
+  }
+
+  /// World box of the active voxels, m.
+  const Eigen::AlignedBox<Real, 3>& bounds() const { return bounds_; }
+
+ private:
+  openvdb::FloatGrid::ConstPtr grid_;
+  Eigen::AlignedBox<Real, 3> bounds_;
+  Real step_ = 0;
+};
+
+namespace {
+
+std::string key_of(std::size_t k, const char* shape, const char* key) {
+  return "walls[" + std::to_string(k) + "]." + shape + "." + key;
+}
+
+/// A closed mesh, transformed like an object's, as a signed distance with `voxel` m voxels:
+/// a narrow band of 3 voxels outside and the whole interior (so that a node deep inside still
+/// has a normal). OpenVDB meshToVolume (Museth 2013).
+openvdb::FloatGrid::ConstPtr mesh_level_set(const WallDesc& w, std::size_t k, Real voxel) {
+  TriangleMesh mesh;
+  try {
+    mesh = load_mesh(w.file);
+  } catch (const MeshError& e) {
+    throw SceneError(w.file_loc, key_of(k, "mesh", "file"), e.what());
+  }
+  if (const std::string why = closedness_problem(mesh); !why.empty())
+    throw SceneError(w.file_loc, key_of(k, "mesh", "file"),
+                     "'" + w.file.string() + "': " + why + "; a collider mesh must be closed");
+  transform_mesh(mesh, w.scale, w.rotation_deg, w.offset);
+  std::vector<openvdb::Vec3s> points;
+  std::vector<openvdb::Vec3I> triangles;
+  for (const Vec3& v : mesh.vertices) points.emplace_back(v.x(), v.y(), v.z());
+  for (const auto& t : mesh.triangles) triangles.emplace_back(t[0], t[1], t[2]);
+  const auto xform = openvdb::math::Transform::createLinearTransform(voxel);
+  openvdb::FloatGrid::Ptr grid = openvdb::tools::meshToSignedDistanceField<openvdb::FloatGrid>(
+      *xform, points, triangles, {}, 3.0f, std::numeric_limits<float>::max());
+  if (grid->activeVoxelCount() == 0)
+    throw SceneError(w.file_loc, key_of(k, "mesh", "file"),
+                     "'" + w.file.string() + "' encloses no volume at the voxel size " +
+                         std::to_string(voxel) + " m (half the grid's cell)");
+  return grid;
+}
+
+/// The level set `w.grid_name` of the VDB file `w.file`.
+openvdb::FloatGrid::ConstPtr read_vdb(const WallDesc& w, std::size_t k) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(w.file, ec))
+    throw SceneError(w.file_loc, key_of(k, "vdb", "file"),
+                     "VDB file '" + w.file.string() + "' does not exist");
+  openvdb::GridBase::Ptr base;
+  std::string names;
+  try {
+    openvdb::io::File file(w.file.string());
+    file.open();
+    for (auto it = file.beginName(); it != file.endName(); ++it)
+      names += (names.empty() ? "'" : ", '") + it.gridName() + "'";
+    if (file.hasGrid(w.grid_name)) base = file.readGrid(w.grid_name);
+    file.close();
+  } catch (const openvdb::Exception& e) {
+    throw SceneError(w.file_loc, key_of(k, "vdb", "file"),
+                     "cannot read VDB file '" + w.file.string() + "': " + e.what());
+  }
+  if (!base)
+    throw SceneError(w.grid_loc, key_of(k, "vdb", "grid"),
+                     "VDB file '" + w.file.string() + "' has no grid '" + w.grid_name +
+                         "'; its grids: " + (names.empty() ? "none" : names));
+  openvdb::FloatGrid::Ptr grid = openvdb::gridPtrCast<openvdb::FloatGrid>(base);
+  if (!grid || grid->getGridClass() != openvdb::GRID_LEVEL_SET)
+    throw SceneError(w.grid_loc, key_of(k, "vdb", "grid"),
+                     "grid '" + w.grid_name + "' is a " + base->valueType() + " " +
+                         openvdb::GridBase::gridClassToString(base->getGridClass()) +
+                         " grid; a collider needs a float level set (signed distance)");
+  if (!grid->transform().isLinear() || grid->activeVoxelCount() == 0)
+    throw SceneError(w.grid_loc, key_of(k, "vdb", "grid"),
+                     "grid '" + w.grid_name + "' is empty or has a non-linear transform");
+  // A narrow band (3 voxels, as Houdini writes) has a flat -background inside, with no
+  // normal: rebuild it with the whole interior, as meshes get (OpenVDB levelSetRebuild).
+  return openvdb::tools::levelSetRebuild(*grid, 0.0f, 3.0f, std::numeric_limits<float>::max());
+}
+
+}  // namespace
+
+std::vector<Collider> build_colliders(const std::vector<WallDesc>& walls, Real voxel) {
+  std::vector<Collider> out;
+  for (std::size_t k = 0; k < walls.size(); ++k) {
+    const WallDesc& w = walls[k];
+    if (w.shape == WallDesc::Shape::plane || w.shape == WallDesc::Shape::box) continue;
+    Collider c;
+    c.boundary = w.boundary;
+    c.friction = w.friction;
+    c.velocity = w.velocity;
+    c.path = w.path;
+    c.angular_velocity = w.angular_velocity;
+    if (w.shape == WallDesc::Shape::sphere) {
+      c.radius = w.radius;
+      c.center = w.center;
+      c.bounds = {w.center - Vec3::Constant(w.radius), w.center + Vec3::Constant(w.radius)};
+    } else {
+      openvdb::initialize();  // registers the grid types; safe to call again
+      auto ls = std::make_shared<const LevelSetGrid>(
+          w.shape == WallDesc::Shape::mesh ? mesh_level_set(w, k, voxel) : read_vdb(w, k));
+      c.bounds = ls->bounds();
+      c.center = w.shape == WallDesc::Shape::mesh ? w.offset : c.bounds.center();
+      c.level_set = std::move(ls);
+    }
+    out.push_back(std::move(c));
+  }
+  return out;
+}
+
+SdfSample Collider::sample(const Vec3& x0) const {
+  if (level_set) return level_set->sample(x0);
+  const Vec3 d = x0 - center;
+  const Real r = d.norm();
+  return {r - radius, r > 0 ? Vec3(d / r) : Vec3::UnitY()};
+}
+
+Real Collider::phi(const Vec3& x0) const {
+  return level_set ? level_set->phi(x0) : (x0 - center).norm() - radius;
+}
+
+ColliderPose Collider::pose(Real t) const {
+  ColliderPose p;
+  const Real w = angular_velocity.norm();
+  if (w > 0) p.rotation = Eigen::AngleAxis<Real>(w * t, angular_velocity / w).toRotationMatrix();
+  p.rest_center = center;
+  p.center = center + path_offset(velocity, path, t);
+  p.velocity = path_velocity(velocity, path, t);
+  p.angular_velocity = angular_velocity;
+  if (w == 0) {
+    p.bounds = bounds.translated(p.center - center);
+    return p;
+  }
+  // The box of the rotated box's corners.
+  for (int c = 0; c < 8; ++c) {
+    const Vec3 corner = bounds.corner(static_cast<Eigen::AlignedBox<Real, 3>::CornerType>(c));
+    p.bounds.extend(p.center + p.rotation * (corner - center));
+  }
+  return p;
+}
+
+Real apply_colliders(const std::vector<Collider>& colliders, Real time, Grid& g) {
+  std::vector<ColliderPose> poses;
+  bool moving = false;
+  for (const Collider& c : colliders) {
+    poses.push_back(c.pose(time));
+    moving = moving || poses.back().velocity.squaredNorm() > 0 ||
+             poses.back().angular_velocity.squaredNorm() > 0;
+  }
+  // Work per block, summed in order afterwards so the total is the same for any thread count.
+  std::vector<Real> work(g.active_blocks(), 0);
+  for_each_active_node(g, [&](int i, int j, int k, std::size_t idx) {
+    if (g.mass[idx] <= 0) return;
+    const Vec3 x = g.position(i, j, k);
+    Vec3 v = g.velocity[idx];
+    Real node_work = 0;
+    for (std::size_t c = 0; c < colliders.size(); ++c) {
+      const ColliderPose& p = poses[c];
+      if (!p.bounds.contains(x)) continue;  // only the nodes near a collider pay for it
+      const Vec3 x0 = p.to_rest(x);
+      if (colliders[c].phi(x0) > 0) continue;  // the normal only where it is needed
+      const SdfSample s = colliders[c].sample(x0);
+      // The wall condition in the collider's frame (Stomakhin et al. 2013, sec. 8): on the
+      // velocity relative to the collider's velocity at the node, v_c = v + w x (x - c). A
+      // node where phi is flat has no normal (it cannot happen with the filled interiors
+      // build_colliders makes, but a degenerate grid may): it moves with the collider.
+      const Vec3 vc = p.velocity_at(x);
+      const Vec3 after =
+          s.normal.squaredNorm() > 0
+              ? Vec3(vc + wall_velocity(v - vc, p.rotation * s.normal, colliders[c].boundary,
+                                        colliders[c].friction))
+              : vc;
+      // The collider's impulse on the node times its velocity there: zero for one at rest.
+      if (moving) node_work += g.mass[idx] * (after - v).dot(vc);
+      v = after;
+    }
+    g.velocity[idx] = v;
+    work[idx / Grid::kBlockNodes] += node_work;
+  });
+  Real total = 0;
+  for (Real w : work) total += w;
+  return total;
+}
+
+}  // namespace mpm
