@@ -266,15 +266,15 @@ TEST_CASE("bad surface input: unknown formats, folders without frames, bad setti
   }
   // Settings: unknown keys, ranges, and a voxel too coarse for the spheres, at their line.
   const auto fails_with = [](const std::string& surface, const std::string& what) {
-    const std::string yaml = "simulation: {dt: 1.0e-3}\nobjects:\n  - {name: a, mesh: "
-                             "meshes/cube.obj, density: 1, material: corotated}\noutput:\n"
+    const std::string yaml = "simulation: {dt: 1.0e-3}\ngrid: {max: [1, 1, 1], dims: 16}\nobjects:\n  - {name: a, mesh: "
+                             "meshes/cube.obj, density: 1, material: corotated, E: 1.0e4, nu: 0.3}\noutput:\n"
                              "  surface: " + surface + "\n";
     INFO(surface);
     try {
       test::scene_from(yaml);
       FAIL("accepted");
     } catch (const SceneError& e) {
-      CHECK_THAT(e.what(), Catch::Contains(what) && Catch::Contains("test.yaml:5:"));
+      CHECK_THAT(e.what(), Catch::Contains(what) && Catch::Contains("test.yaml:6:"));
     }
   };
   fails_with("{radius: 0.1}", "output.surface.radius");
@@ -282,8 +282,8 @@ TEST_CASE("bad surface input: unknown formats, folders without frames, bad setti
   fails_with("{radius: 1, voxel: 0.8}", "a sphere narrower than 1.5 voxels would be dropped");
   fails_with("{smoothin: 3}", "unknown key 'smoothin'");
   SceneDesc ok = test::scene_from(
-      "simulation: {dt: 1.0e-3}\nobjects:\n  - {name: a, mesh: meshes/cube.obj, density: 1, "
-      "material: corotated}\noutput: {formats: [mesh, vdb], surface: {radius: 1.5, voxel: 0.25, "
+      "simulation: {dt: 1.0e-3}\ngrid: {max: [1, 1, 1], dims: 16}\nobjects:\n  - {name: a, mesh: meshes/cube.obj, density: 1, "
+      "material: corotated, E: 1.0e4, nu: 0.3}\noutput: {formats: [mesh, vdb], surface: {radius: 1.5, voxel: 0.25, "
       "smoothing: 2, normals: false}}\n");
   CHECK(ok.output.formats == std::vector<Format>{Format::mesh, Format::vdb});
   CHECK(ok.output.surface.radius == 1.5);
