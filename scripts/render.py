@@ -31,8 +31,8 @@ def parse_args():
     p.add_argument("-o", "--out", default=None)
     p.add_argument("--samples", type=int, default=32)
     p.add_argument("--size", type=int, nargs=2, default=[960, 540])
-    p.add_argument("--camera", type=float, nargs=3, default=[0.95, 0.55, 1.45])
-    p.add_argument("--look-at", type=float, nargs=3, default=[0.5, 0.22, 0.5])
+    p.add_argument("--camera", type=float, nargs=3, default=[0.95, 0.5, 1.55])
+    p.add_argument("--look-at", type=float, nargs=3, default=[0.55, 0.2, 0.5])
     p.add_argument("--floor", type=float, default=0.05, help="floor height (y, engine units)")
     p.add_argument("--engine", default="CYCLES", choices=["CYCLES", "BLENDER_WORKBENCH"])
     return p.parse_args(argv)
@@ -79,11 +79,11 @@ def setup(args):
 
     # Floor: a large plane at the floor height (engine y is Blender z).
     bpy.ops.mesh.primitive_plane_add(size=20, location=(0.5, -0.5, args.floor))
-    bpy.context.object.data.materials.append(material("floor", (0.55, 0.55, 0.55)))
+    bpy.context.object.data.materials.append(material("floor", (0.35, 0.36, 0.38)))
 
     bpy.ops.object.light_add(type="SUN", rotation=(math.radians(40), math.radians(15),
                                                     math.radians(30)))
-    bpy.context.object.data.energy = 3.0
+    bpy.context.object.data.energy = 2.5
     bpy.context.object.data.angle = math.radians(8)
 
     cam_pos = engine_to_blender(args.camera)
