@@ -426,14 +426,15 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
       << YAML::EndMap;
   y << YAML::EndSeq;
   y << YAML::Key << "objects" << YAML::Value << YAML::BeginSeq;
-  const std::vector<SurfaceObject> spacing = surface_objects(sim.scene());
-  for (const ObjectInfo& o : sim.objects()) {
+  const std::vector<SurfaceObject> surfaces = surface_objects(sim.scene());
+  for (std::size_t k = 0; k < sim.objects().size(); ++k) {
+    const ObjectInfo& o = sim.objects()[k];
     y << YAML::BeginMap;
     y << YAML::Key << "name" << YAML::Value << o.name;
     y << YAML::Key << "material" << YAML::Value << o.material;
     y << YAML::Key << "particles" << YAML::Value << o.count;
     y << YAML::Key << "mass" << YAML::Value << o.mass;
-    y << YAML::Key << "particle_spacing" << YAML::Value << spacing[&o - sim.objects().data()].spacing;
+    y << YAML::Key << "particle_spacing" << YAML::Value << surfaces[k].spacing;
     y << YAML::EndMap;
   }
   y << YAML::EndSeq;

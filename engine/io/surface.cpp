@@ -48,8 +48,8 @@ struct ParticleList {
 
 /// An object's level set and, if asked, the velocity of the particle nearest to each voxel.
 struct ObjectLevelSet {
-  openvdb::FloatGrid::Ptr sdf;        ///< Narrow-band signed distance, m (negative inside).
-  openvdb::Vec3SGrid::Ptr velocity;   ///< On the rasterised band, m/s (or null).
+  openvdb::FloatGrid::Ptr sdf;       ///< Narrow-band signed distance, m (negative inside).
+  openvdb::Vec3SGrid::Ptr velocity;  ///< On the rasterised band, m/s (or null).
 };
 
 /// Steps 1 to 3 of the pipeline in surface.h for object `object` of `frame`.
@@ -171,8 +171,7 @@ FrameData frame_data(const FrameView& view) {
   return d;
 }
 
-PlyMesh build_surface(const FrameData& frame, int object, double spacing,
-                      const SurfaceDesc& desc) {
+PlyMesh build_surface(const FrameData& frame, int object, double spacing, const SurfaceDesc& desc) {
   const ObjectLevelSet ls = build_level_set(frame, object, spacing, desc, false);
   return mesh_level_set(*ls.sdf, desc.normals);
 }
@@ -238,8 +237,7 @@ void write_surfaces(const std::filesystem::path& dir, const FrameData& frame,
 int surfaces_from_run(const std::filesystem::path& dir, bool mesh, bool vdb) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (!fs::is_directory(dir, ec))
-    throw SceneError({dir.string()}, "", "no such run folder");
+  if (!fs::is_directory(dir, ec)) throw SceneError({dir.string()}, "", "no such run folder");
   // The frames, in frame order.
   std::map<int, fs::path> frames;
   for (const auto& e : fs::directory_iterator(dir, ec)) {

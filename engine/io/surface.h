@@ -44,8 +44,7 @@ std::vector<SurfaceObject> surface_objects(const SceneDesc& scene);
 
 /// The triangle surface of the particles of object `object` in `frame` (empty if the object
 /// has no particles). Throws std::runtime_error if OpenVDB fails.
-PlyMesh build_surface(const FrameData& frame, int object, double spacing,
-                          const SurfaceDesc& desc);
+PlyMesh build_surface(const FrameData& frame, int object, double spacing, const SurfaceDesc& desc);
 
 /// Writes frame `frame`'s surfaces into `dir`: with `mesh`, `frame_NNNNN_<object>.ply` per
 /// object (write_ply_mesh); with `vdb`, one `frame_NNNNN.vdb` holding per object a level set

@@ -232,7 +232,8 @@ OutputDesc read_output(ParamReader r) {
   if (r.has("formats")) {
     o.formats.clear();
     const YAML::Node list = r.sequence("formats");
-    if (list.size() == 0) r.fail("formats", std::string("give at least one format: ") + format_names());
+    if (list.size() == 0)
+      r.fail("formats", std::string("give at least one format: ") + format_names());
     for (const auto& item : list) {
       const auto f = item.IsScalar() ? format_from_name(item.Scalar()) : std::nullopt;
       if (!f)
