@@ -5,6 +5,7 @@
 #include "engine/io/bgeo.h"
 #include "engine/io/ply.h"
 #include "engine/io/preview.h"
+#include "engine/io/surface.h"
 #include "engine/io/xdmf.h"
 
 #include <chrono>
@@ -341,7 +342,19 @@ void FrameOutput::write(const Simulation& sim, int frame) {
                        preview_walls(sim.scene(), static_cast<double>(sim.time())));
         break;
       }
+      case Format::mesh:
+      case Format::vdb: break;  // below, both from one level set per object
     }
+  }
+  const auto has = [&](Format f) {
+    return std::find(desc_.formats.begin(), desc_.formats.end(), f) != desc_.formats.end();
+  };
+  if (has(Format::mesh) || has(Format::vdb)) {
+    const auto s0 = std::chrono::steady_clock::now();
+    write_surfaces(dir_, frame_data(view), surface_objects(sim.scene()), desc_.surface,
+                   has(Format::mesh), has(Format::vdb));
+    surface_seconds_ +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count();
   }
   scratch_ = FrameArrays{};  // frames are rare: give the memory back between them
   if (desc_.checkpoint) write_checkpoint(dir_ / "checkpoint.h5", sim, frame);
@@ -393,6 +406,7 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
   y << YAML::Key << "wall_seconds" << YAML::Value << r.wall_seconds;
   y << YAML::Key << "loop_seconds" << YAML::Value << r.loop_seconds;
   y << YAML::Key << "output_seconds" << YAML::Value << seconds_;
+  y << YAML::Key << "surface_seconds" << YAML::Value << surface_seconds_;
   y << YAML::Key << "check_seconds" << YAML::Value << r.check_seconds;
   y << YAML::Key << "observer_seconds" << YAML::Value << r.observer_seconds;
   const double steps = static_cast<double>(n) * sim.substeps();
@@ -416,15 +430,28 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
       << YAML::EndMap;
   y << YAML::EndSeq;
   y << YAML::Key << "objects" << YAML::Value << YAML::BeginSeq;
-  for (const ObjectInfo& o : sim.objects()) {
+  const std::vector<SurfaceObject> surfaces = surface_objects(sim.scene());
+  for (std::size_t k = 0; k < sim.objects().size(); ++k) {
+    const ObjectInfo& o = sim.objects()[k];
     y << YAML::BeginMap;
     y << YAML::Key << "name" << YAML::Value << o.name;
     y << YAML::Key << "material" << YAML::Value << o.material;
     y << YAML::Key << "particles" << YAML::Value << o.count;
     y << YAML::Key << "mass" << YAML::Value << o.mass;
+    y << YAML::Key << "particle_spacing" << YAML::Value << surfaces[k].spacing;
     y << YAML::EndMap;
   }
-  y << YAML::EndSeq << YAML::EndMap;
+  y << YAML::EndSeq;
+  // How `mpm surface DIR` builds the same surfaces as the mesh and vdb formats.
+  const SurfaceDesc& s = desc_.surface;
+  y << YAML::Key << "surface" << YAML::Value << YAML::BeginMap;
+  y << YAML::Key << "radius" << YAML::Value << s.radius;
+  y << YAML::Key << "voxel" << YAML::Value << s.voxel;
+  y << YAML::Key << "smoothing" << YAML::Value << s.smoothing;
+  y << YAML::Key << "normals" << YAML::Value << s.normals;
+  y << YAML::Key << "density" << YAML::Value << s.density;
+  y << YAML::Key << "velocity" << YAML::Value << s.velocity;
+  y << YAML::EndMap << YAML::EndMap;
 
   std::error_code ec;
   std::filesystem::create_directories(dir_, ec);

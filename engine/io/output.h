@@ -62,7 +62,9 @@ void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, 
 int restore_checkpoint(const std::filesystem::path& file, Simulation& sim);
 
 /// Writes each frame in the scene's formats (HDF5 with an XDMF index, bgeo, PLY, PNG
-/// previews), a checkpoint after each frame, and report.yaml at the end.
+/// previews, surfaces as PLY meshes and VDB level sets), a checkpoint after each frame, and
+/// report.yaml at the end (with each object's particle spacing and the surface settings, which
+/// `mpm surface` reads).
 class FrameOutput : public Observer {
  public:
   /// Output into `dir` as `desc` asks; `resumed_frame` > 0 continues a run from that frame
@@ -81,6 +83,7 @@ class FrameOutput : public Observer {
   int resumed_frame_ = 0;
   int last_frame_ = -1;
   double seconds_ = 0;
+  double surface_seconds_ = 0;  // of seconds_, building and writing mesh and vdb surfaces
   FrameArrays scratch_;  // the frame in id order, while it is written
 };
 

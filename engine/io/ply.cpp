@@ -146,4 +146,100 @@ PlyPoints read_ply(const std::filesystem::path& file) {
   return p;
 }
 
+void write_ply_mesh(const std::filesystem::path& file, const PlyMesh& mesh,
+                    const std::vector<std::string>& comments) {
+  const std::size_t n = mesh.vertices.size();
+  const bool normals = !mesh.normals.empty();
+  if (normals && mesh.normals.size() != n)
+    throw std::invalid_argument("PLY mesh: " + std::to_string(mesh.normals.size()) +
+                                " normals for " + std::to_string(n) + " vertices");
+  for (const auto& t : mesh.triangles)
+    for (int v : t)
+      if (v < 0 || static_cast<std::size_t>(v) >= n)
+        throw std::invalid_argument("PLY mesh: vertex index " + std::to_string(v) +
+                                    " out of range (" + std::to_string(n) + " vertices)");
+  std::string bytes = "ply\nformat binary_little_endian 1.0\n";
+  for (const std::string& c : comments) bytes += "comment " + c + "\n";
+  bytes += "element vertex " + std::to_string(n) + "\n";
+  bytes += "property float x\nproperty float y\nproperty float z\n";
+  if (normals) bytes += "property float nx\nproperty float ny\nproperty float nz\n";
+  bytes += "element face " + std::to_string(mesh.triangles.size()) + "\n";
+  bytes += "property list uchar int vertex_indices\nend_header\n";
+  bytes.reserve(bytes.size() + n * (normals ? 24 : 12) + mesh.triangles.size() * 13);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (float c : mesh.vertices[i]) put_le(bytes, std::bit_cast<std::uint32_t>(c));
+    if (normals)
+      for (float c : mesh.normals[i]) put_le(bytes, std::bit_cast<std::uint32_t>(c));
+  }
+  for (const auto& t : mesh.triangles) {
+    bytes.push_back(3);
+    for (int v : t) put_le(bytes, static_cast<std::uint32_t>(v));
+  }
+  write_file_whole(file, bytes);
+}
+
+PlyMesh read_ply_mesh(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot open PLY file '" + file.string() + "'");
+  const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) bad(file, "read error");
+  std::size_t pos = 0;
+  auto next_line = [&]() {
+    const std::size_t end = data.find('\n', pos);
+    if (end == std::string::npos) bad(file, "header ends early");
+    std::string line = data.substr(pos, end - pos);
+    pos = end + 1;
+    return line;
+  };
+  auto expect = [&](const std::string& want) {
+    const std::string line = next_line();
+    if (line != want) bad(file, "expected '" + want + "' in the header, found '" + line + "'");
+  };
+  expect("ply");
+  expect("format binary_little_endian 1.0");
+  std::string line = next_line();
+  while (line.rfind("comment ", 0) == 0) line = next_line();
+  if (line.rfind("element vertex ", 0) != 0) bad(file, "expected 'element vertex N'");
+  const auto n = parse_all<std::size_t>(file, line.substr(15), "vertex count");
+  expect("property float x");
+  expect("property float y");
+  expect("property float z");
+  line = next_line();
+  const bool normals = line == "property float nx";
+  if (normals) {
+    expect("property float ny");
+    expect("property float nz");
+    line = next_line();
+  }
+  if (line.rfind("element face ", 0) != 0) bad(file, "expected 'element face N'");
+  const auto f = parse_all<std::size_t>(file, line.substr(13), "face count");
+  expect("property list uchar int vertex_indices");
+  expect("end_header");
+  const std::size_t vertex_bytes = normals ? 24 : 12;
+  const std::size_t body = data.size() - pos;
+  if (n > body / vertex_bytes || f > body / 13 || body != n * vertex_bytes + f * 13)
+    bad(file, std::to_string(n) + " vertices and " + std::to_string(f) +
+                  " triangles do not fill the " + std::to_string(body) + " bytes after the header");
+  PlyMesh m;
+  m.vertices.resize(n);
+  if (normals) m.normals.resize(n);
+  const char* r = data.data() + pos;
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int a = 0; a < 3; ++a) m.vertices[i][a] = std::bit_cast<float>(get_le(r + 4 * a));
+    if (normals)
+      for (int a = 0; a < 3; ++a) m.normals[i][a] = std::bit_cast<float>(get_le(r + 12 + 4 * a));
+    r += vertex_bytes;
+  }
+  m.triangles.resize(f);
+  for (std::size_t i = 0; i < f; ++i, r += 13) {
+    if (*r != 3) bad(file, "face " + std::to_string(i) + " is not a triangle");
+    for (int a = 0; a < 3; ++a) {
+      const std::uint32_t v = get_le(r + 1 + 4 * a);
+      if (v >= n) bad(file, "face " + std::to_string(i) + " names vertex " + std::to_string(v));
+      m.triangles[i][a] = static_cast<int>(v);
+    }
+  }
+  return m;
+}
+
 }  // namespace mpm

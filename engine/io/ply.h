@@ -1,7 +1,10 @@
 #pragma once
-/// \file Binary PLY point clouds, one vertex per particle (Blender, MeshLab, CloudCompare).
+/// \file Binary PLY point clouds, one vertex per particle, and triangle meshes (Blender,
+/// MeshLab, CloudCompare, ParaView, Houdini).
 
+#include <array>
 #include <cstddef>
+#include <string>
 #include <filesystem>
 #include <vector>
 
@@ -33,5 +36,24 @@ struct PlyPoints {
 /// Reads a file written by write_ply. Throws std::runtime_error if the file cannot be read or
 /// its header or size differs in any way from what write_ply writes.
 PlyPoints read_ply(const std::filesystem::path& file);
+
+/// A triangle mesh in float, as PLY stores it.
+struct PlyMesh {
+  std::vector<std::array<float, 3>> vertices;  ///< Positions, m.
+  std::vector<std::array<float, 3>> normals;   ///< Unit normals per vertex, or empty.
+  std::vector<std::array<int, 3>> triangles;   ///< Vertex indices, counter-clockwise from outside.
+};
+
+/// Writes `mesh` as a binary_little_endian PLY 1.0 mesh: element vertex with float x, y, z
+/// (and nx, ny, nz if it has normals), element face with `property list uchar int
+/// vertex_indices`, and `comments` as header comments. Writes `<file>.tmp` and renames it.
+/// Throws std::invalid_argument if normals and vertices differ in number or an index is out
+/// of range, std::runtime_error if the file cannot be written.
+void write_ply_mesh(const std::filesystem::path& file, const PlyMesh& mesh,
+                    const std::vector<std::string>& comments = {});
+
+/// Reads a file written by write_ply_mesh. Throws std::runtime_error if the file cannot be
+/// read or differs from that layout.
+PlyMesh read_ply_mesh(const std::filesystem::path& file);
 
 }  // namespace mpm

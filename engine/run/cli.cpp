@@ -21,6 +21,7 @@
 #include "engine/tools/validation/study.h"
 #include "engine/scene/load_scene.h"
 #include "engine/io/output.h"
+#include "engine/io/surface.h"
 #include "engine/run/progress.h"
 #include "engine/run/run.h"
 #include "engine/step/simulation.h"
@@ -41,6 +42,10 @@ Usage:
                                  list every registered material (and a scene's or a file's
                                  plugins) with its keys, units, defaults and ranges
   mpm preview DIR [--fps N]      join DIR/preview/frame_*.png into DIR/preview.mp4 (ffmpeg)
+  mpm surface DIR [--format mesh,vdb]
+                                 build the surfaces of a finished run from its frame_*.h5
+                                 (mesh: frame_NNNNN_<object>.ply; vdb: frame_NNNNN.vdb;
+                                 default mesh), as the mesh and vdb formats write them
   mpm bench [--cases jello,snow,sparse,two_cubes,machine] [--particles N] [--threads N]
             [--csv FILE] [--simd on|off]
                                  time standard cases (median of 3 after a warm-up;
@@ -63,8 +68,8 @@ Options of run:
   --out DIR          write frames and report.yaml to DIR (default: the scene's output.directory)
   --force            replace the results of an earlier run in the output folder
   --resume DIR       continue the run in DIR from its last complete frame (checkpoint.h5)
-  --format LIST      formats to write, e.g. hdf5,png (hdf5, bgeo, ply, png; default: the
-                     scene's output.formats, else hdf5)
+  --format LIST      formats to write, e.g. hdf5,png (hdf5, bgeo, ply, png, mesh, vdb;
+                     default: the scene's output.formats, else hdf5)
   --frames N         simulate N frames instead of the scene's simulation.frames
   --set KEY=VALUE    override a scene value, e.g. --set grid.dims=64 --set objects[0].E=2e4
                      (repeatable; checked like the file)
@@ -197,7 +202,7 @@ void check_options(const Args& a) {
       {"--out", {"run"}},
       {"--force", {"run", "golden"}},
       {"--resume", {"run"}},
-      {"--format", {"run"}},
+      {"--format", {"run", "surface"}},
       {"--frames", {"run", "golden", "compare"}},
       {"--set", {"run", "validate", "golden"}},
       {"--plugin", {"run", "validate", "golden", "materials"}},
@@ -212,8 +217,8 @@ void check_options(const Args& a) {
       {"--fps", {"preview"}},
       {"--quick", {"study"}},
   };
-  const std::vector<std::string> known = {"run",   "validate", "materials", "preview",
-                                          "bench", "study",    "golden",    "compare"};
+  const std::vector<std::string> known = {"run",   "validate", "materials", "preview", "bench",
+                                          "study", "golden",   "compare",   "surface"};
   if (std::find(known.begin(), known.end(), a.command) == known.end()) return;
   for (const std::string& flag : a.given)
     for (const auto& [option, commands] : kApplies) {
@@ -287,6 +292,30 @@ int cmd_preview(const Args& args) {
                           (dir / "preview.mp4").string() + "'";
   if (std::system(cmd.c_str()) != 0) return mpm::kExitRunFailed;
   std::printf("%s\n", (dir / "preview.mp4").c_str());
+  return mpm::kExitOk;
+}
+
+/// mpm surface DIR [--format mesh,vdb]: surfaces from a finished run's frames.
+int cmd_surface(const Args& args) {
+  if (args.scene.empty()) usage_error("'mpm surface' needs a run's output folder");
+  bool mesh = args.formats.empty(), vdb = false;
+  for (const std::string& name : split_list(args.formats)) {
+    if (name == "mesh") mesh = true;
+    else if (name == "vdb") vdb = true;
+    else usage_error("'mpm surface' writes the formats mesh and vdb, not '" + name + "'");
+  }
+  if (!mesh && !vdb) usage_error("--format needs mesh, vdb or both");
+  try {
+    const int frames = mpm::surfaces_from_run(args.scene, mesh, vdb);
+    std::printf("%s: surfaces of %d frames (%s%s%s)\n", args.scene.c_str(), frames,
+                mesh ? "mesh" : "", mesh && vdb ? ", " : "", vdb ? "vdb" : "");
+  } catch (const mpm::SceneError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return mpm::kExitBadInput;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return mpm::kExitRunFailed;
+  }
   return mpm::kExitOk;
 }
 
@@ -380,8 +409,9 @@ int cmd_run(const Args& args) {
       std::stringstream list(args.formats);
       for (std::string name; std::getline(list, name, ',');) {
         const auto f = mpm::format_from_name(name);
-        if (!f) throw mpm::SceneError({"--format"}, "", "unknown format '" + name +
-                                                            "'; expected hdf5, bgeo, ply or png");
+        if (!f)
+          throw mpm::SceneError({"--format"}, "", "unknown format '" + name + "'; expected " +
+                                                      mpm::format_names());
         scene.output.formats.push_back(*f);
       }
     }
@@ -475,6 +505,7 @@ int run_cli(int argc, char** argv) {
   if (args.command == "materials") return cmd_materials(args);
   if (args.command == "preview") return cmd_preview(args);
   if (args.command == "study") return cmd_study(args);
+  if (args.command == "surface") return cmd_surface(args);
   if (args.command == "bench") return cmd_bench(args);
   if (args.command == "compare") return cmd_compare(args);
   return cmd_run(args);

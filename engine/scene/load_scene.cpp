@@ -246,6 +246,27 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
   return o;
 }
 
+/// output.surface: how the mesh and vdb formats build surfaces (lengths in particle spacings).
+SurfaceDesc read_surface(ParamReader r) {
+  SurfaceDesc s;
+  s.radius = r.get_or("radius", s.radius);
+  r.check_range("radius", s.radius, 0.5, 4);
+  s.voxel = r.get_or("voxel", s.voxel);
+  r.check_range("voxel", s.voxel, 0.1, 1);
+  // ParticlesToLevelSet skips spheres narrower than 1.5 voxels: refuse rather than lose them.
+  if (s.radius < 1.5 * s.voxel)
+    r.fail("voxel", "voxel (" + std::to_string(s.voxel) + " particle spacings) must be at most "
+                    "radius / 1.5 (" + std::to_string(s.radius / 1.5) +
+                    "): a sphere narrower than 1.5 voxels would be dropped");
+  s.smoothing = r.get_or("smoothing", s.smoothing);
+  r.check_range("smoothing", s.smoothing, 0, 100);
+  s.normals = r.get_or("normals", s.normals);
+  s.density = r.get_or("density", s.density);
+  s.velocity = r.get_or("velocity", s.velocity);
+  r.finish();
+  return s;
+}
+
 OutputDesc read_output(ParamReader r) {
   OutputDesc o;
   o.directory = r.get_or<std::string>("directory", "output");
@@ -253,13 +274,14 @@ OutputDesc read_output(ParamReader r) {
   if (r.has("formats")) {
     o.formats.clear();
     const YAML::Node list = r.sequence("formats");
-    if (list.size() == 0) r.fail("formats", "give at least one format: hdf5, bgeo, ply or png");
+    if (list.size() == 0)
+      r.fail("formats", std::string("give at least one format: ") + format_names());
     for (const auto& item : list) {
       const auto f = item.IsScalar() ? format_from_name(item.Scalar()) : std::nullopt;
       if (!f)
         throw SceneError(node_loc(item, r.file()), r.key_path("formats"),
                          "unknown format " + (item.IsScalar() ? "'" + item.Scalar() + "'" : "") +
-                             "; expected hdf5, bgeo, ply or png");
+                             "; expected " + format_names());
       if (std::find(o.formats.begin(), o.formats.end(), *f) == o.formats.end())
         o.formats.push_back(*f);
     }
@@ -279,6 +301,7 @@ OutputDesc read_output(ParamReader r) {
   o.preview_size = r.get_or("preview_size", o.preview_size);
   for (int i = 0; i < 2; ++i) r.check_range("preview_size", o.preview_size[i], 16, 8192);
   o.checkpoint = r.get_or("checkpoint", o.checkpoint);
+  if (r.has("surface")) o.surface = read_surface(r.child("surface"));
   r.finish();
   return o;
 }
@@ -446,8 +469,12 @@ std::optional<Format> format_from_name(const std::string& name) {
   if (name == "bgeo") return Format::bgeo;
   if (name == "ply") return Format::ply;
   if (name == "png") return Format::png;
+  if (name == "mesh") return Format::mesh;
+  if (name == "vdb") return Format::vdb;
   return std::nullopt;
 }
+
+const char* format_names() { return "hdf5, bgeo, ply, png, mesh or vdb"; }
 
 SceneOverride parse_override(const std::string& text) {
   const std::size_t eq = text.find('=');

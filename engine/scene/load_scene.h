@@ -25,8 +25,11 @@ struct LoadOptions {
   PluginPolicy plugins;  ///< `--plugin` files, loaded first, and where scene plugins may be.
 };
 
-/// The format called `name` (hdf5, bgeo, ply, png), or std::nullopt.
+/// The format called `name` (hdf5, bgeo, ply, png, mesh, vdb), or std::nullopt.
 std::optional<Format> format_from_name(const std::string& name);
+
+/// The format names for messages: "hdf5, bgeo, ply, png, mesh or vdb".
+const char* format_names();
 
 /// Splits "KEY=VALUE" into a SceneOverride; throws SceneError if there is no '='.
 SceneOverride parse_override(const std::string& text);

@@ -113,8 +113,20 @@ struct WallDesc {
   FileLoc loc;                     ///< Where the wall starts in the scene file.
 };
 
-/// File formats a run can write per frame.
-enum class Format { hdf5, bgeo, ply, png };
+/// File formats a run can write per frame (mesh: a triangle surface per object as PLY; vdb:
+/// one OpenVDB file of level sets per frame).
+enum class Format { hdf5, bgeo, ply, png, mesh, vdb };
+
+/// How the `mesh` and `vdb` formats turn an object's particles into a surface
+/// (engine/io/surface.h). Lengths are in the object's particle spacing s = (h^3 / ppc)^(1/3).
+struct SurfaceDesc {
+  double radius = 1.0;     ///< Sphere radius around each particle, in s.
+  double voxel = 0.6;      ///< Level set voxel size, in s.
+  int smoothing = 6;       ///< Mean-value flow passes (3^3 box filter) on the level set.
+  bool normals = true;     ///< Per-vertex normals in the mesh PLY.
+  bool density = false;    ///< vdb: also a `<object>_density` fog volume per object.
+  bool velocity = false;   ///< vdb: also a `<object>_velocity` grid per object.
+};
 
 /// A camera for PNG previews.
 struct CameraDesc {
@@ -131,6 +143,7 @@ struct OutputDesc {
   std::optional<CameraDesc> camera;            ///< PNG camera; default frames the grid.
   Vec2i preview_size{640, 480};                ///< PNG width and height, pixels.
   bool checkpoint = true;                      ///< Keep DIR/checkpoint.h5 for --resume.
+  SurfaceDesc surface;                         ///< Surfaces for the mesh and vdb formats.
 };
 
 /// A whole scene, validated.
