@@ -59,6 +59,35 @@ T parse_all(const std::filesystem::path& file, const std::string& text, const ch
   return value;
 }
 
+/// A PLY file read whole, and a cursor over its header's lines.
+struct PlyText {
+  std::filesystem::path file;
+  std::string data;
+  std::size_t pos = 0;  ///< Start of the next header line; after end_header, of the body.
+
+  explicit PlyText(const std::filesystem::path& f) : file(f) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw std::runtime_error("cannot open PLY file '" + file.string() + "'");
+    data.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    if (in.bad()) bad(file, "read error");
+  }
+  /// The next header line, without its newline.
+  std::string next_line() {
+    const std::size_t end = data.find('\n', pos);
+    if (end == std::string::npos) bad(file, "header ends early");
+    std::string line = data.substr(pos, end - pos);
+    pos = end + 1;
+    return line;
+  }
+  /// Reads the next line and throws unless it is `want`.
+  void expect(const std::string& want) {
+    const std::string line = next_line();
+    if (line != want) bad(file, "expected '" + want + "' in the header, found '" + line + "'");
+  }
+  /// Bytes after the header.
+  std::size_t body() const { return data.size() - pos; }
+};
+
 }  // namespace
 
 void write_ply(const std::filesystem::path& file, const FrameView& frame) {
@@ -90,26 +119,11 @@ void write_ply(const std::filesystem::path& file, const FrameView& frame) {
 }
 
 PlyPoints read_ply(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot open PLY file '" + file.string() + "'");
-  const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) bad(file, "read error");
-
   // The header: lines up to and including "end_header\n".
-  std::size_t pos = 0;
-  auto next_line = [&]() {
-    const std::size_t end = data.find('\n', pos);
-    if (end == std::string::npos) bad(file, "header ends early");
-    std::string line = data.substr(pos, end - pos);
-    pos = end + 1;
-    return line;
-  };
-  auto expect = [&](const std::string& want) {
-    const std::string line = next_line();
-    if (line != want) bad(file, "expected '" + want + "' in the header, found '" + line + "'");
-  };
+  PlyText ply(file);
+  auto expect = [&](const std::string& want) { ply.expect(want); };
   auto value_after = [&](const std::string& prefix) {
-    const std::string line = next_line();
+    const std::string line = ply.next_line();
     if (line.rfind(prefix, 0) != 0)
       bad(file, "expected '" + prefix + "...' in the header, found '" + line + "'");
     return line.substr(prefix.size());
@@ -124,7 +138,7 @@ PlyPoints read_ply(const std::filesystem::path& file) {
   for (const char* prop : kProperties) expect(prop);
   expect("end_header");
 
-  const std::size_t body = data.size() - pos;
+  const std::size_t body = ply.body();
   if (n > body / kRecordBytes || body != n * kRecordBytes)
     bad(file, std::to_string(n) + " vertices need " + std::to_string(n * kRecordBytes) +
                   " bytes after the header, found " + std::to_string(body));
@@ -134,7 +148,7 @@ PlyPoints read_ply(const std::filesystem::path& file) {
   p.object_id.resize(n);
   p.J.resize(n);
   p.id.resize(n);
-  const char* r = data.data() + pos;
+  const char* r = ply.data.data() + ply.pos;
   for (std::size_t i = 0; i < n; ++i, r += kRecordBytes) {
     for (int a = 0; a < 3; ++a) p.position[3 * i + a] = std::bit_cast<float>(get_le(r + 4 * a));
     for (int a = 0; a < 3; ++a)
@@ -179,22 +193,9 @@ void write_ply_mesh(const std::filesystem::path& file, const PlyMesh& mesh,
 }
 
 PlyMesh read_ply_mesh(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot open PLY file '" + file.string() + "'");
-  const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) bad(file, "read error");
-  std::size_t pos = 0;
-  auto next_line = [&]() {
-    const std::size_t end = data.find('\n', pos);
-    if (end == std::string::npos) bad(file, "header ends early");
-    std::string line = data.substr(pos, end - pos);
-    pos = end + 1;
-    return line;
-  };
-  auto expect = [&](const std::string& want) {
-    const std::string line = next_line();
-    if (line != want) bad(file, "expected '" + want + "' in the header, found '" + line + "'");
-  };
+  PlyText ply(file);
+  auto next_line = [&]() { return ply.next_line(); };
+  auto expect = [&](const std::string& want) { ply.expect(want); };
   expect("ply");
   expect("format binary_little_endian 1.0");
   std::string line = next_line();
@@ -216,14 +217,14 @@ PlyMesh read_ply_mesh(const std::filesystem::path& file) {
   expect("property list uchar int vertex_indices");
   expect("end_header");
   const std::size_t vertex_bytes = normals ? 24 : 12;
-  const std::size_t body = data.size() - pos;
+  const std::size_t body = ply.body();
   if (n > body / vertex_bytes || f > body / 13 || body != n * vertex_bytes + f * 13)
     bad(file, std::to_string(n) + " vertices and " + std::to_string(f) +
                   " triangles do not fill the " + std::to_string(body) + " bytes after the header");
   PlyMesh m;
   m.vertices.resize(n);
   if (normals) m.normals.resize(n);
-  const char* r = data.data() + pos;
+  const char* r = ply.data.data() + ply.pos;
   for (std::size_t i = 0; i < n; ++i) {
     for (int a = 0; a < 3; ++a) m.vertices[i][a] = std::bit_cast<float>(get_le(r + 4 * a));
     if (normals)
