@@ -10,6 +10,33 @@
 
 namespace mpm::materials {
 
+/// -V0 tau of every particle of a value-type model (kirchhoff), into `out`.
+template <class Model>
+void model_stress(const Model& model, std::span<const StoredMat3> F, Real volume0,
+                  std::span<StoredMat3> out) {
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+  for (std::ptrdiff_t p = 0; p < n; ++p)
+    out[p] = to_stored(-volume0 * model.kirchhoff(to_real(F[p])));
+}
+
+/// The largest wave speed of a value-type model (wave_speed) over the particles, m/s.
+template <class Model>
+Real model_max_wave_speed(const Model& model, std::span<const StoredMat3> F, Real rho0) {
+  Real c = 0;
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
+#pragma omp parallel for schedule(static) reduction(max : c) if (n >= kParallelMinItems)
+  for (std::ptrdiff_t p = 0; p < n; ++p) c = std::max(c, model.wave_speed(to_real(F[p]), rho0));
+  return c;
+}
+
+/// The elastic energy of a value-type model (energy) over the particles, J; the same for any
+/// thread count (sum_chunks).
+template <class Model>
+Real model_elastic_energy(const Model& model, std::span<const StoredMat3> F, Real volume0) {
+  return volume0 * sum_chunks(F.size(), [&](std::size_t p) { return model.energy(to_real(F[p])); });
+}
+
 /// Wraps a value-type model (energy, kirchhoff, wave_speed) as a MaterialGroup.
 /// The loops are templated on Model, so the compiler inlines the model per particle.
 template <class Model>
@@ -20,22 +47,15 @@ class ElasticGroup final : public MaterialGroup {
 
   void compute_stress(std::span<const StoredMat3> F, Real volume0,
                       std::span<StoredMat3> out) const override {
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p)
-      out[p] = to_stored(-volume0 * model_.kirchhoff(to_real(F[p])));
+    model_stress(model_, F, volume0, out);
   }
 
   Real max_wave_speed(std::span<const StoredMat3> F) const override {
-    Real c = 0;
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static) reduction(max : c) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p) c = std::max(c, model_.wave_speed(to_real(F[p]), rho0_));
-    return c;
+    return model_max_wave_speed(model_, F, rho0_);
   }
 
   Real elastic_energy(std::span<const StoredMat3> F, Real volume0) const override {
-    return volume0 * sum_chunks(F.size(), [&](std::size_t p) { return model_.energy(to_real(F[p])); });
+    return model_elastic_energy(model_, F, volume0);
   }
 
   BatchModel batch_model() const override {

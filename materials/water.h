@@ -15,7 +15,7 @@
 #include <cmath>
 #include <cstddef>
 
-#include "engine/core/reduce.h"
+#include "materials/elastic_group.h"
 #include "materials/material.h"
 
 namespace mpm::materials {
@@ -71,10 +71,7 @@ class WaterGroup final : public MaterialGroup {
 
   void compute_stress(std::span<const StoredMat3> F, Real volume0,
                       std::span<StoredMat3> out) const override {
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p)
-      out[p] = to_stored(-volume0 * model_.kirchhoff(to_real(F[p])));
+    model_stress(model_, F, volume0, out);
   }
 
   bool has_plasticity() const override {
@@ -88,15 +85,11 @@ class WaterGroup final : public MaterialGroup {
   }
 
   Real max_wave_speed(std::span<const StoredMat3> F) const override {
-    Real c = 0;
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static) reduction(max : c) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p) c = std::max(c, model_.wave_speed(to_real(F[p]), rho0_));
-    return c;
+    return model_max_wave_speed(model_, F, rho0_);
   }
 
   Real elastic_energy(std::span<const StoredMat3> F, Real volume0) const override {
-    return volume0 * sum_chunks(F.size(), [&](std::size_t p) { return model_.energy(to_real(F[p])); });
+    return model_elastic_energy(model_, F, volume0);
   }
 
   /// The model.
