@@ -14,13 +14,13 @@ struct FixedCorotated {
   Real mu = 0;      ///< Shear modulus, Pa.
   Real lambda = 0;  ///< First Lamé parameter, Pa.
 
-  /// Energy density psi(F), J/m^3.
+  /// Energy density psi(F), J/m^3. With F = R S (polar_rotation), S's eigenvalues are the
+  /// signed sigma_i, so sum_i (sigma_i - 1)^2 = |S - I|^2 = |F - R|^2: the stress's own R, and
+  /// no SVD.
   Real energy(const Mat3& F) const {
-    Mat3 U, V;
-    Vec3 s;
-    svd_rv(F, U, s, V);
-    const Real J = s.prod();
-    return mu * (s.array() - 1).square().sum() + 0.5 * lambda * (J - 1) * (J - 1);
+    Real J;
+    const Mat3 R = polar_rotation(F, J);
+    return mu * (F - R).squaredNorm() + 0.5 * lambda * (J - 1) * (J - 1);
   }
 
   /// First Piola-Kirchhoff stress P = 2 mu (F - R) + lambda (J - 1) J F^-T, Pa.

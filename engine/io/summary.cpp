@@ -26,7 +26,6 @@ FrameSummary summarize(const Simulation& sim, int frame) {
   const Particles& p = sim.particles();
   const Vec3 g = sim.scene().simulation.gravity;
   const Vec3 origin = sim.scene().grid.origin;
-  const std::span<const StoredMat3> F(p.F);
 
   FrameSummary out;
   out.frame = frame;
@@ -102,9 +101,11 @@ FrameSummary summarize(const Simulation& sim, int frame) {
     s.angular_momentum = t.angular;
     // One material range per object in practice; any range lying inside the object counts.
     double elastic = 0;
-    for (const MaterialRange& r : sim.materials()) {
+    const std::vector<Real>& range_energy = sim.range_elastic_energies();
+    for (std::size_t k = 0; k < sim.materials().size(); ++k) {
+      const MaterialRange& r = sim.materials()[k];
       if (r.count == 0 || !r.material || r.first < o.first || r.first + r.count > end) continue;
-      elastic += r.material->elastic_energy(F.subspan(r.first, r.count), p.volume0(r.first));
+      elastic += range_energy[k];
     }
     s.elastic_energy = elastic;
     out.objects.push_back(std::move(s));

@@ -298,6 +298,7 @@ void Simulation::substep(Real dt) {
   }
   time_ += dt;
   ++substeps_;
+  ++state_;
 }
 
 Real Simulation::max_speed() const {
@@ -337,10 +338,22 @@ std::size_t Simulation::fastest_particle() const {
   return best;
 }
 
+const std::vector<Real>& Simulation::range_elastic_energies() const {
+  if (energy_state_ != state_) {
+    range_energy_.clear();
+    for (const auto& m : materials_)
+      range_energy_.push_back(
+          m.count == 0 ? Real(0)
+                       : m.material->elastic_energy(slice(particles_.F, m),
+                                                    particles_.volume0(m.first)));
+    energy_state_ = state_;
+  }
+  return range_energy_;
+}
+
 Real Simulation::elastic_energy() const {
   Real e = 0;
-  for (const auto& m : materials_)
-    e += m.material->elastic_energy(slice(particles_.F, m), particles_.volume0(m.first));
+  for (Real r : range_elastic_energies()) e += r;
   return e;
 }
 

@@ -1,6 +1,7 @@
 #pragma once
 /// \file A simulation built from a scene: particles, grid, materials and the list of stages.
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -62,8 +63,11 @@ class Simulation {
   /// Advances by one substep of `dt` seconds, running every stage in order.
   void substep(Real dt);
 
-  /// Particle state.
-  Particles& particles() { return particles_; }
+  /// Particle state. Non-const access counts as a change of state (range_elastic_energies()).
+  Particles& particles() {
+    ++state_;
+    return particles_;
+  }
   /// Particle state.
   const Particles& particles() const { return particles_; }
   /// Grid state.
@@ -73,7 +77,10 @@ class Simulation {
   /// The material of each particle range.
   const std::vector<MaterialRange>& materials() const { return materials_; }
   /// The material of each particle range (for restoring checkpointed state).
-  std::vector<MaterialRange>& materials() { return materials_; }
+  std::vector<MaterialRange>& materials() {
+    ++state_;
+    return materials_;
+  }
   /// The stages of a substep, in order.
   const std::vector<Stage>& stages() const { return stages_; }
   /// Seconds spent so far in each stage, in order, after "cfl_bound" (the wave-speed bound of
@@ -112,6 +119,10 @@ class Simulation {
   Real kinetic_energy() const;
   /// Total elastic energy stored in all materials, J.
   Real elastic_energy() const;
+  /// Elastic energy of each material range, in materials() order, J. Computed once per state
+  /// (a substep or a non-const access changes it), so the energy check and the summaries of a
+  /// frame share one pass over the particles.
+  const std::vector<Real>& range_elastic_energies() const;
 
  private:
   explicit Simulation(const SceneDesc& scene);
@@ -132,6 +143,9 @@ class Simulation {
   AdvectStats last_advect_;
   std::size_t clamped_total_ = 0;
   Real wall_work_ = 0;
+  std::size_t state_ = 0;                          // bumped by every change of state
+  mutable std::size_t energy_state_ = SIZE_MAX;    // the state range_energy_ was computed for
+  mutable std::vector<Real> range_energy_;         // cache of range_elastic_energies()
 };
 
 }  // namespace mpm
