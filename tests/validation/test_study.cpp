@@ -54,7 +54,8 @@ TEST_CASE("study: an unknown sweep is refused with the list of sweeps", "[valida
   CHECK_THROWS_WITH(run_study(opt), Catch::Contains("h_convergence"));
 }
 
-TEST_CASE("quick study: the still water column's pressure error shrinks with h", "[validation][water]") {
+TEST_CASE("quick study: the still water column's pressure error shrinks with h",
+          "[validation][water]") {
   // water_h --quick: hydrostatic_column at H / h = 8 and 16 (about 15 s). The layer-mean
   // pressure error is O(h) (docs/validation.md, case 10): below h / H at each level, and smaller
   // at the finer one.

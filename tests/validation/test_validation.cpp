@@ -231,8 +231,9 @@ TEST_CASE("validation: a slumped sand column's flanks stand no steeper than its 
   }
 }
 
-TEST_CASE("validation: in plane-strain shear flow, Klar's cone gives tau / sigma_n = 3 alpha / sqrt 2",
-          "[validation][sand]") {
+TEST_CASE(
+    "validation: in plane-strain shear flow, Klar's cone gives tau / sigma_n = 3 alpha / sqrt 2",
+    "[validation][sand]") {
   // Column collapse (case 12) and the slope of a deposit are plane-strain shear flows. In steady
   // simple shear with no dilatancy (Klar's case III keeps tr eps), the stress deviator is pure
   // shear, so |dev tau| = sqrt 2 tau and the cone |dev tau| = alpha tr(-tau) = 3 alpha sigma_n
