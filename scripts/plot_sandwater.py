@@ -58,7 +58,14 @@ def column_results(run_dir, h):
         rb = (np.arange(len(top)) + 0.5) * h
         ok = ~np.isnan(top) & (top > 0.2 * np.nanmax(top)) & (top < 0.8 * np.nanmax(top))
         slope = np.degrees(np.arctan(-np.polyfit(rb[ok], top[ok], 1)[0])) if ok.sum() >= 3 else np.nan
-        out.append((H0 / L0, (runout - L0) / L0, (a1[:, 1].max() + gap - floor) / L0, slope))
+        # Has it stopped? The fastest particle at the last frame, and the runout's change over
+        # the last 0.25 s (5 frames of 0.05 s).
+        ap = h5py.File(f[max(0, len(f) - 6)], "r")
+        xp = ap["position"][:][ap["object_id"][:] == o]
+        runout_p = ((xp[:, 0].max() + gap - centre) + (centre - xp[:, 0].min() + gap)) / 2
+        vmax = np.linalg.norm(last["velocity"][:][obj1 == o], axis=1).max()
+        out.append((H0 / L0, (runout - L0) / L0, (a1[:, 1].max() + gap - floor) / L0, slope,
+                    vmax, (runout - runout_p) / L0))
     return sorted(out)
 
 
@@ -77,12 +84,14 @@ def collapse(out_png, runs):
     ax1.plot(a[a > 2.8], 1.9 * a[a > 2.8] ** (2 / 3), "k--", label="Lube et al. 2005: 1.9 a^(2/3)")
     ax2.plot(a[a < 1.15], a[a < 1.15], "k-", label="Lube et al. 2005: a")
     ax2.plot(a[a > 1.15], a[a > 1.15] ** 0.4, "k--", label="Lube et al. 2005: a^(2/5)")
+    ax2.plot(a[a > 1.15], 0.88 * a[a > 1.15] ** (1 / 3), "k:", label="0.88 a^(1/3) (unverified)")
     for label, h, run_dir in runs:
         res = column_results(run_dir, h)
-        for ai, r, hh, slope in res:
+        for ai, r, hh, slope, vmax, drift in res:
             print(f"{label}: a = {ai:.2f}  runout {r:.3f} (Lube {float(lube_runout(ai)):.3f})"
                   f"  height {hh:.3f} (Lube {float(lube_height(ai)):.3f})"
-                  f"  flank slope {slope:.1f} deg")
+                  f"  flank slope {slope:.1f} deg  last frame: max speed {vmax:.3f} m/s,"
+                  f" runout change over 0.25 s {drift:+.3f} L0")
         A = [x[0] for x in res]
         ax1.plot(A, [x[1] for x in res], "o-", label=label)
         ax2.plot(A, [x[2] for x in res], "o-", label=label)

@@ -1,9 +1,11 @@
 #!/usr/bin/python3
 """Figures of the accuracy study from the CSV files `mpm study -o DIR` writes.
 
-Usage: scripts/plot_study.py DIR [-o IMAGE_DIR]
+Usage: scripts/plot_study.py DIR [-o IMAGE_DIR] [--sandwater]
 Writes IMAGE_DIR/accuracy_error_vs_time.png, accuracy_convergence.png, accuracy_drift.png and,
-when the speed_* sweeps ran, accuracy_speed_options.png (IMAGE_DIR defaults to docs/images).
+when the speed_* sweeps ran, accuracy_speed_options.png, and when the sand and water sweeps ran
+(water_h, dam_break, collapse_h, repose), accuracy_sandwater.png (IMAGE_DIR defaults to
+docs/images).
 Needs Debian's python3-matplotlib (hence /usr/bin/python3).
 """
 import argparse
@@ -168,12 +170,80 @@ def speed_options(rows, out):
     return True
 
 
+def sandwater(rows, out):
+    """Issue 17's sweeps (water_h, dam_break, collapse_h, repose) in four panels. Returns False
+    if none ran."""
+    rs = [r for r in rows if r["experiment"] in ("water_h", "dam_break", "collapse_h", "repose")
+          and r["status"] == "ok"]
+    if not rs:
+        return False
+    fig, axes = plt.subplots(1, 4, figsize=(18, 4.2))
+    ax = axes[0]
+    pts = sorted((float(r["h"]), float(r["error"])) for r in rs if r["experiment"] == "water_h")
+    if pts:
+        hs, es = [p[0] for p in pts], [p[1] for p in pts]
+        ax.loglog(hs, es, "o-", label="layer-mean RMS: order %.2f" % order(hs, es))
+        ax.loglog(hs, [h / 0.2 for h in hs], "k--", label="h / H (the test's bound)")
+    ax.set_xlabel("grid spacing h, m (depth H = 0.2 m)")
+    ax.set_ylabel("pressure error / rho g H")
+    ax.set_title("Still water column: p from J")
+    ax = axes[1]
+    for r in rs:
+        if r["experiment"] != "dam_break":
+            continue
+        ax.scatter(float(r["wall_seconds"]), float(r["error"]))
+        ax.annotate("%s h=%.4g" % (r["transfer"], float(r["h"])),
+                    (float(r["wall_seconds"]), float(r["error"])), fontsize=7)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("wall time of the substeps, s (one thread, loaded machine)")
+    ax.set_ylabel("surge front RMS relative error")
+    ax.set_title("Dam break against Martin & Moyce 1952")
+    ax = axes[2]
+    pts = sorted((float(r["h"]), float(r["error"])) for r in rs if r["experiment"] == "collapse_h")
+    if pts:
+        ax.loglog([p[0] for p in pts], [p[1] for p in pts], "o-",
+                  label="a = 2 column, tan 30 friction")
+    ax.set_xlabel("grid spacing h, m (L0 = 0.04 m)")
+    ax.set_ylabel("runout relative error against Lube et al. 2005")
+    ax.set_title("Column collapse runout against h")
+    ax = axes[3]
+    slopes = []
+    for r in rs:
+        if r["experiment"] != "repose":
+            continue
+        for m in r["measures"].split("; "):
+            if m.startswith("slope_"):
+                value, exact = m.split("=")[1].split(" (exact ")
+                slopes.append((float(exact.rstrip(")")), float(value)))
+    if slopes:
+        slopes.sort()
+        ax.plot([s[0] for s in slopes], [s[1] for s in slopes], "o-", label="deposit flank, a = 2")
+        ax.plot([15, 45], [15, 45], "k--", label="repose angle atan(mu)")
+    ax.set_xlabel("repose angle of the flow friction, degrees")
+    ax.set_ylabel("flank slope, degrees")
+    ax.set_title("Angle of the deposit's flank")
+    for ax in axes:
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    return True
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("study_dir")
     ap.add_argument("-o", "--output", default="docs/images")
+    ap.add_argument("--sandwater", action="store_true",
+                    help="only accuracy_sandwater.png (a study of the sand and water sweeps)")
     args = ap.parse_args()
     rows = read(os.path.join(args.study_dir, "study.csv"))
+    if args.sandwater:
+        os.makedirs(args.output, exist_ok=True)
+        sandwater(rows, os.path.join(args.output, "accuracy_sandwater.png"))
+        print("wrote accuracy_sandwater.png in " + args.output)
+        return
     series_rows = read(os.path.join(args.study_dir, "series.csv"))
     os.makedirs(args.output, exist_ok=True)
     error_vs_time(rows, os.path.join(args.output, "accuracy_error_vs_time.png"))
@@ -182,6 +252,8 @@ def main():
     written = "accuracy_error_vs_time.png, accuracy_convergence.png, accuracy_drift.png"
     if speed_options(rows, os.path.join(args.output, "accuracy_speed_options.png")):
         written += ", accuracy_speed_options.png"
+    if sandwater(rows, os.path.join(args.output, "accuracy_sandwater.png")):
+        written += ", accuracy_sandwater.png"
     print("wrote " + written + " in " + args.output)
 
 

@@ -53,3 +53,22 @@ TEST_CASE("study: an unknown sweep is refused with the list of sweeps", "[valida
   opt.experiments = {"h_convergance"};
   CHECK_THROWS_WITH(run_study(opt), Catch::Contains("h_convergence"));
 }
+
+TEST_CASE("quick study: the still water column's pressure error shrinks with h",
+          "[validation][water]") {
+  // water_h --quick: hydrostatic_column at H / h = 8 and 16 (about 15 s). The layer-mean
+  // pressure error is O(h) (docs/validation.md, case 10): below h / H at each level, and smaller
+  // at the finer one.
+  StudyOptions opt;
+  opt.quick = true;
+  opt.experiments = {"water_h"};
+  const std::vector<StudyRow> rows = run_study(opt);
+  REQUIRE(rows.size() == 2);
+  for (const StudyRow& r : rows) {
+    INFO("h " << r.h << ": layer-mean pressure RMS error / rho g H " << r.outcome.error);
+    CHECK(r.outcome.status == "ok");
+    CHECK(r.outcome.error < r.h / 0.2);
+  }
+  CHECK(rows[1].h < rows[0].h);
+  CHECK(rows[1].outcome.error < rows[0].outcome.error);
+}

@@ -3,9 +3,12 @@
 // formula and the scheme's known error, not fitted to the measured value.
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <numbers>
 #include <sstream>
 
 #include "engine/tools/validation/cases.h"
+#include "materials/sand.h"
+#include "materials/svd.h"
 #include "support/float_bounds.h"
 #include "support/helpers.h"
 
@@ -205,17 +208,70 @@ TEST_CASE("validation: the dam break's surge front follows Martin & Moyce 1952",
   CHECK(o.error < 0.2);
 }
 
-TEST_CASE("validation: a slumped sand column's flanks stand at the friction angle",
+TEST_CASE("validation: a slumped sand column's flanks stand no steeper than its repose angle",
           "[validation][sand]") {
-  // A column of a = 2 fails quasi-statically: its deposit's flanks are at the angle of
-  // repose, the friction angle of a cohesionless Drucker-Prager material. The fitted flank is
-  // about 4 h long, and each bin's surface (its highest particle) is known to a particle
-  // spacing, h / 2: opposite errors at its ends tilt the line by up to atan(1 / 8) = 7 degrees.
-  for (double phi : {30.0, 20.0}) {
+  // The slot makes the flow plane strain, where Klar's cone flows at tau / sigma_n =
+  // 2 sqrt 3 sin(phi) / (3 - sin(phi)) (the next test): friction_angle 25.377 and 16.573 give
+  // repose angles of 30 and 20 degrees. No slope of a cohesionless deposit can stand steeper
+  // than that; the fitted flank is about 4 h long, and each bin's surface (its highest
+  // particle) is known to a particle spacing, h / 2, so the fit may tilt by atan(1 / 8) = 7
+  // degrees. The column falls and spreads (it does not creep), so its deposit is flatter than
+  // the repose angle, as Lube et al. 2005's are (docs/validation.md, case 14); the friction
+  // must still order the slopes.
+  double previous = -1;
+  for (auto [phi, repose] : {std::pair{16.573, 20.0}, {25.377, 30.0}}) {
     const Outcome o = run("sand_slope", {{"objects[0].friction_angle", std::to_string(phi)}});
     const Measure& m = o.measure("slope_a2");
-    INFO("friction angle " << phi << ": flank slope " << m.value << " degrees");
-    CHECK(m.exact == phi);
-    CHECK(std::abs(m.value - phi) < 7);
+    INFO("friction angle " << phi << ": flank slope " << m.value << " degrees, repose angle "
+                           << m.exact);
+    CHECK(std::abs(m.exact - repose) < 1e-3);
+    CHECK(m.value < repose + 7);
+    CHECK(m.value > previous);
+    previous = m.value;
+  }
+}
+
+TEST_CASE(
+    "validation: in plane-strain shear flow, Klar's cone gives tau / sigma_n = 3 alpha / sqrt 2",
+    "[validation][sand]") {
+  // Column collapse (case 12) and the slope of a deposit are plane-strain shear flows. In steady
+  // simple shear with no dilatancy (Klar's case III keeps tr eps), the stress deviator is pure
+  // shear, so |dev tau| = sqrt 2 tau and the cone |dev tau| = alpha tr(-tau) = 3 alpha sigma_n
+  // gives the flow friction mu = tau / sigma_n = 3 alpha / sqrt 2 = 2 sqrt 3 sin(phi) /
+  // (3 - sin(phi)): tan 34.7 degrees for phi = 30 (docs/validation.md, case 12). Sheared here
+  // at one material point: 0.1 % isotropic compression, then 3000 increments of 1e-5.
+  using materials::DruckerPragerSand;
+  const double E = 3.5e5, nu = 0.3;
+  // Inputs phi whose flow friction is tan 20, tan 30 and tan 40 degrees: sin phi = 3 tan theta
+  // / (2 sqrt 3 + tan theta), the inverse of the relation above.
+  for (auto [phi_deg, theta_deg] : {std::pair{16.573, 20.0}, {25.377, 30.0}, {35.802, 40.0}}) {
+    DruckerPragerSand sand;
+    sand.mu = E / (2 * (1 + nu));
+    sand.lambda = E * nu / ((1 + nu) * (1 - 2 * nu));
+    sand.alpha = DruckerPragerSand::cone_alpha(phi_deg * std::numbers::pi / 180);
+    Mat3 Fe = Mat3::Identity() * std::exp(-0.001);
+    Mat3 shear = Mat3::Identity();
+    shear(0, 1) = 1e-5;
+    double vc = 0;
+    for (int step = 0; step < 3000; ++step) {
+      Fe = shear * Fe;
+      Mat3 U, V;
+      Vec3 sigma;
+      svd_rv(Fe, U, sigma, V);
+      Vec3 eps = DruckerPragerSand::hencky(sigma);
+      sand.project(eps, vc);
+      Fe = U * eps.array().exp().matrix().asDiagonal() * V.transpose();
+    }
+    const Mat3 tau = sand.kirchhoff(Fe);
+    const double mu_flow = tau(0, 1) / -tau(1, 1);
+    const double expected = 3 * sand.alpha / std::sqrt(2.0);
+    INFO("phi " << phi_deg << ": tau / sigma_n " << mu_flow << " against 3 alpha / sqrt 2 "
+                << expected << " (" << std::atan(expected) * 180 / std::numbers::pi
+                << " degrees); tau_xx " << tau(0, 0) << ", tau_yy " << tau(1, 1) << ", tau_zz "
+                << tau(2, 2));
+    // The elastic strain (about 0.1 %) and the material spin tilt the deviator off pure shear:
+    // 4.5 % at phi = 35.8 with ten times this strain, 0.45 % here: O(strain), inside 1 %.
+    CHECK(std::abs(mu_flow / expected - 1) < 0.01);
+    CHECK(std::abs(expected / std::tan(theta_deg * std::numbers::pi / 180) - 1) < 1e-4);
   }
 }

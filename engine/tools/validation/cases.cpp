@@ -634,6 +634,17 @@ double lube_height(double a) {
   return a < 1.15 ? a : std::pow(a, 0.4);
 }
 
+/// Angle (degrees) of the shear-flow friction tau / sigma_n = 3 alpha / sqrt 2 =
+/// 2 sqrt 3 sin(phi) / (3 - sin(phi)) that Klar et al. 2016's cone (alpha, their section 7.3)
+/// gives in plane strain for friction angle `phi_deg`: steady simple shear with no dilatancy has
+/// a pure-shear stress deviator, |dev tau| = sqrt 2 tau, and the cone is |dev tau| = 3 alpha
+/// sigma_n. A cohesionless slope in this material stands up to this angle (docs/validation.md,
+/// case 12); 34.7 degrees for phi = 30.
+double flow_friction_angle(double phi_deg) {
+  const double s = std::sin(phi_deg * std::numbers::pi / 180);
+  return std::atan(2 * std::sqrt(3.0) * s / (3 - s)) * 180 / std::numbers::pi;
+}
+
 /// 12. Granular column collapse: symmetric sand columns of half-width L0 and aspect a = H / L0
 /// (one per object) collapse on a rough floor; the final runout (L - L0) / L0 of each side
 /// and the final height H / L0 against Lube et al. 2005. Extents are particle extents plus the
@@ -666,8 +677,9 @@ class ColumnCollapse final : public Probe {
       const std::string name = sim.objects()[o].name;
       out.measures.push_back({"runout_" + name, runout, lube_runout(a), ""});
       out.measures.push_back({"height_" + name, height, lube_height(a), ""});
-      out.measures.push_back({"slope_" + name, flank_slope(sim, o, c),
-                              param(sim.scene().objects.at(o), "friction_angle"), "deg"});
+      out.measures.push_back(
+          {"slope_" + name, flank_slope(sim, o, c),
+           flow_friction_angle(param(sim.scene().objects.at(o), "friction_angle")), "deg"});
       rel.push_back((runout - lube_runout(a)) / lube_runout(a));
     }
     out.error_name = "runout RMS relative error against Lube et al. 2005";
@@ -747,6 +759,9 @@ const std::vector<Case>& cases() {
       {"rolling_ball", "solid ball on a 30 degree incline against x = (5/7) g sin t^2 / 2",
        make<RollingBall>},
       {"hydrostatic_water", "Tait water at rest in a box: p from J against rho g (H - Y)",
+       make<HydrostaticWater>},
+      {"hydrostatic_column",
+       "a water column at rest, H / h = 8 (the h sweep's scene): p from J against rho g (H - Y)",
        make<HydrostaticWater>},
       {"dam_break", "water column collapse: surge front against Martin & Moyce 1952",
        make<DamBreak>},

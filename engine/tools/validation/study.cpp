@@ -116,6 +116,26 @@ std::vector<Setting> incline_sweep(std::vector<int> levels) {
   return out;
 }
 
+/// The dam break (issue 17): every transfer (PIC, FLIP 0.95 and 0.99, APIC, MLS) at the scene's
+/// h, then APIC at each finer level of `levels`.
+/// `levels` with grid.buffer = 3 cells times the level, so the domain boundary stays where the
+/// scene puts it (on hydrostatic_column's box wall: see docs/accuracy.md).
+std::vector<Setting> over_refine_fixed_buffer(std::vector<int> levels) {
+  std::vector<Setting> out = over_refine(levels);
+  for (Setting& s : out) s.buffer = 3 * s.refine;
+  return out;
+}
+
+std::vector<Setting> dam_break_sweep(std::vector<int> levels) {
+  std::vector<Setting> out = over_transfers({});
+  Setting mls;
+  mls.transfer = "mls";
+  out.push_back(mls);
+  for (Setting s : over_refine(levels))
+    if (s.refine > 1) out.push_back(s);
+  return out;
+}
+
 /// 1, 8 and 27 particles per cell, each on a lattice and jittered.
 std::vector<Setting> ppc_sweep(Setting base) {
   std::vector<Setting> out;
@@ -143,6 +163,7 @@ const std::vector<Experiment>& experiments() {
       s.dt = 1.0;
     };
     const auto set_dt = [](Setting& s, double dt) { s.dt = dt; };
+    const auto set_phi = [](Setting& s, double phi) { s.friction_angle = phi; };
     const std::vector<std::pair<const char*, double>> pic_flip = {{"pic", 0.0}, {"flip", 0.99}};
     std::vector<Setting> quick_h = over_refine({1, 2, 4});
     for (Setting& s : quick_h) s.frames = 12;
@@ -168,6 +189,15 @@ const std::vector<Experiment>& experiments() {
         {"speed_spin", "spinning_cube", speed_options({1, 2}, {}, pic_flip), {}},
         {"speed_collision", "sphere_collision", speed_options({1, 2}, {}, pic_flip), {}},
         {"speed_column", "resting_column", speed_options({1, 2}, {}, {}), {}},
+        // Issue 17: water and sand. The hydrostatic column at H / h = 8, 16, 32; the dam break
+        // per transfer and at h / 2; the a = 2 sand column's runout at h and h / 2.
+        {"water_h", "hydrostatic_column", over_refine_fixed_buffer({1, 2, 4}),
+         over_refine_fixed_buffer({1, 2})},
+        {"dam_break", "dam_break", dam_break_sweep({1, 2}), {}},
+        {"collapse_h", "sand_slope", over_refine({1, 2}), {}},
+        // The a = 2 column at the friction angles whose plane-strain flow friction is tan 20,
+        // tan 30 and tan 40 degrees (docs/validation.md, case 12): its flank slope.
+        {"repose", "sand_slope", over<double>({16.573, 25.377, 35.802}, {}, set_phi), {}},
     };
   }();
   return all;
@@ -189,6 +219,7 @@ std::vector<SceneOverride> overrides_for(const Setting& s, const SceneDesc& scen
     const std::string obj = "objects[" + std::to_string(i) + "].";
     if (s.ppc) o.push_back({obj + "particles_per_cell", std::to_string(*s.ppc)});
     if (s.sampling) o.push_back({obj + "sampling", *s.sampling});
+    if (s.friction_angle) o.push_back({obj + "friction_angle", text(*s.friction_angle)});
   }
   if (s.cfl) o.push_back({"simulation.cfl", text(*s.cfl)});
   if (s.dt) o.push_back({"simulation.dt", text(*s.dt)});
@@ -199,6 +230,7 @@ std::vector<SceneOverride> overrides_for(const Setting& s, const SceneDesc& scen
   if (s.grid_precision) o.push_back({"grid.precision", *s.grid_precision});
   if (s.simd) o.push_back({"simulation.simd", *s.simd ? "true" : "false"});
   if (s.boundary) o.push_back({"walls[0].boundary", *s.boundary});
+  if (s.buffer) o.push_back({"grid.buffer", std::to_string(*s.buffer)});
   return o;
 }
 
@@ -331,6 +363,7 @@ std::string setting_label(const StudyRow& r) {
   if (r.setting.grid_precision) s << " grid=" << r.grid_precision;
   if (r.setting.simd) s << (r.simd ? " simd" : " scalar");
   if (r.setting.boundary) s << " floor=" << *r.setting.boundary;
+  if (r.setting.friction_angle) s << " phi=" << *r.setting.friction_angle;
   return s.str();
 }
 

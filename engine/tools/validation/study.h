@@ -26,6 +26,8 @@ struct Setting {
   std::optional<std::string> grid_precision;  ///< grid.precision: float or double.
   std::optional<bool> simd;           ///< simulation.simd: SIMD (true) or scalar transfers.
   std::optional<std::string> boundary;  ///< walls[0].boundary: sticky, slip or separate.
+  std::optional<double> friction_angle;  ///< friction_angle of every object, degrees (sand).
+  std::optional<int> buffer;  ///< grid.buffer, cells.
 };
 
 /// One run of a study: what was set and what came out.
