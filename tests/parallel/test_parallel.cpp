@@ -128,9 +128,9 @@ TEST_CASE("two runs on two ranks are bit-identical", "[parallel]") {
 TEST_CASE("more ranks than slabs: an error on rank 0 and exit 2 on every rank", "[parallel]") {
   const fs::path dir = test::temp_dir("parallel_too_many");
   // 7 cells per axis: 8 nodes, two 4-node slabs, for three ranks.
-  const std::string args = "run " + (test::source_dir() / "scenes/two_cubes.yaml").string() +
-                           " --set grid.dims=7 --set grid.buffer=1 --force --out " +
-                           (dir / "out").string();
+  const std::string args = "run " + (test::source_dir() / "scenes/jello_cube.yaml").string() +
+                           " --set grid.dims=7 --set grid.buffer=2 --set objects[0].scale=0.1"
+                           " --force --out " + (dir / "out").string();
   const int code = run_mpm(3, args, dir / "log");
   const std::string log = read_text(dir / "log");
   INFO(log);
