@@ -88,27 +88,33 @@ TEST_CASE("slabs balance particle counts and give every rank a layer", "[paralle
 // The bound: the ranks add a ghost node's two partial sums in another order than one rank
 // sums its particles, a difference of double round-off (1e-16 relative) per substep, which
 // float particle storage (F, C) and the contact of the two cubes amplify over the frames.
-// The frames store float positions (ulp 6e-8 m at 1 m). Measured: see docs/distributed.md.
+// The frames store float positions (ulp 6e-8 m at 1 m). Measured over these cases: at most
+// 6e-8 m, 1.2e-6 m/s and 1.1e-6 in J (one float ulp; docs/distributed.md); the bounds
+// below leave about ten times that for growth over the frames.
+constexpr double kPositionBound = 5e-7;  ///< m
+constexpr double kVelocityBound = 1e-5;  ///< m/s
+constexpr double kJBound = 1e-5;
 TEST_CASE("two ranks give the frames of one rank to round-off: two_cubes", "[parallel]") {
   const ParticleDiff d =
       one_against_two("two_cubes", "scenes/two_cubes.yaml",
                       "--set grid.dims=48 --set objects[0].particles_per_cell=4 "
                       "--set objects[1].particles_per_cell=4",
                       6);
-  CHECK(d.max_position < 1e-5);
-  CHECK(d.max_velocity < 1e-3);
-  CHECK(d.max_J < 1e-4);
+  CHECK(d.max_position < kPositionBound);
+  CHECK(d.max_velocity < kVelocityBound);
+  CHECK(d.max_J < kJBound);
 }
 
 TEST_CASE("two ranks give the frames of one rank to round-off: validation cases",
           "[parallel]") {
-  for (const char* name : {"sphere_collision", "dam_break", "sand_slope"}) {
+  for (const char* name : {"sphere_collision", "dam_break", "sand_slope"}) {  // collision, water, sand
     INFO(name);
     const ParticleDiff d = one_against_two(
-        name, std::string("scenes/validation/") + name + ".yaml", "", 2);
-    CHECK(d.max_position < 1e-5);
-    CHECK(d.max_velocity < 1e-3);
-    CHECK(d.max_J < 1e-4);
+        name, std::string("scenes/validation/") + name + ".yaml", "",
+        std::string(name) == "sand_slope" ? 1 : 2);  // sand: 176 substeps a frame
+    CHECK(d.max_position < kPositionBound);
+    CHECK(d.max_velocity < kVelocityBound);
+    CHECK(d.max_J < kJBound);
   }
 }
 
@@ -155,6 +161,6 @@ TEST_CASE("a checkpoint of one rank resumes on two", "[parallel]") {
                          (dir / "split").string(),
                   dir / "second.log") == 0);
   const ParticleDiff d = worst_diff(dir / "whole", dir / "split", 4);
-  CHECK(d.max_position < 1e-5);
-  CHECK(d.max_velocity < 1e-3);
+  CHECK(d.max_position < kPositionBound);
+  CHECK(d.max_velocity < kVelocityBound);
 }
