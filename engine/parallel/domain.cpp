@@ -72,10 +72,14 @@ Slabs balanced_slabs(const std::vector<std::uint64_t>& per_layer, int ranks, int
   std::uint64_t before = 0;  // particles in layers [0, l)
   int l = 0;
   for (int r = 1; r < ranks; ++r) {
-    // The first layer whose prefix reaches r N / ranks (integer arithmetic: no rounding drift).
-    while (l < layers && before * ranks < static_cast<std::uint64_t>(r) * total)
-      before += per_layer[l++];
-    s.first_layer[r] = std::clamp(l, s.first_layer[r - 1] + 1, layers - (ranks - r));
+    // The first layer whose prefix reaches r N / ranks (integer arithmetic: no rounding
+    // drift), or the one before it if that prefix is nearer.
+    const std::uint64_t target = static_cast<std::uint64_t>(r) * total;
+    while (l < layers && before * ranks < target) before += per_layer[l++];
+    int bound = l;
+    if (l > 0 && target - (before - per_layer[l - 1]) * ranks < before * ranks - target)
+      bound = l - 1;
+    s.first_layer[r] = std::clamp(bound, s.first_layer[r - 1] + 1, layers - (ranks - r));
   }
   return s;
 }

@@ -27,8 +27,9 @@ struct Slabs {
 };
 
 /// Slab bounds balancing particle counts: with `per_layer[l]` particles whose stencil base lies
-/// in layer l, rank r starts at the first layer where the count before it reaches r N / ranks,
-/// kept at least one layer after rank r - 1's start and leaving one layer for each later rank.
+/// in layer l, rank r starts at the layer whose count before it is nearest r N / ranks (of
+/// the first to reach it and the one before), kept at least one layer after rank r - 1's
+/// start and leaving one layer for each later rank.
 /// Needs ranks <= per_layer.size().
 Slabs balanced_slabs(const std::vector<std::uint64_t>& per_layer, int ranks, int axis);
 

@@ -78,6 +78,9 @@ TEST_CASE("slabs balance particle counts and give every rank a layer", "[paralle
   CHECK(two.owner_of_layer(4) == 1);
   CHECK(two.owner_of_layer(-1) == 0);
   CHECK(two.owner_of_layer(12) == 1);
+  // 10, 30, 60 particles: two ranks split nearest 50 at layer 2 (40 | 60), not 3 (100 | 0).
+  const parallel::Slabs nearest = parallel::balanced_slabs({10, 30, 60, 0}, 2, 0);
+  CHECK(nearest.first_layer == std::vector<int>{0, 2, 4});
   // All particles in one layer: the bounds still increase, one layer per rank at least.
   std::vector<std::uint64_t> one(4, 0);
   one[0] = 1000;
