@@ -194,7 +194,8 @@ void Simulation::build_stages() {
     add("reorder", [this](Real) {
       if (substeps_ % scene_.simulation.reorder_every != 0) return;
       std::vector<ReorderRange> ranges;
-      for (auto& m : materials_) ranges.push_back({m.first, m.count, m.material->state()});
+      for (auto& m : materials_)  // an object with no particles here (other ranks) has none
+        if (m.count > 0) ranges.push_back({m.first, m.count, m.material->state()});
       reorder_particles(ranges, order_, particles_);
     });
   // The stress of each group (object), chosen here once per group: with simulation.simd, a
