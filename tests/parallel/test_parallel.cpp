@@ -63,6 +63,11 @@ ParticleDiff one_against_two(const std::string& name, const std::string& scene,
   REQUIRE(run_mpm(2, common + (dir / "two").string(), dir / "two.log") == 0);
   const std::string report = read_text(dir / "two" / "report.yaml");
   CHECK(report.find("ranks: 2") != std::string::npos);
+  // `mpm compare` reads the two-rank run like any other, against the one-rank run.
+  const std::string compare = std::string(MPM_BINARY) + " compare " + (dir / "two").string() +
+                              " " + (dir / "one").string() + " > " +
+                              (dir / "compare.log").string() + " 2>&1";
+  CHECK(std::system(compare.c_str()) == 0);
   return worst_diff(dir / "one", dir / "two", frames);
 }
 
