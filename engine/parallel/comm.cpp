@@ -1,9 +1,9 @@
 #include "engine/parallel/comm.h"
 
+#include <mpi.h>
+
 #include <chrono>
 #include <cstdlib>
-
-#include <mpi.h>
 
 namespace mpm::parallel {
 
@@ -30,8 +30,8 @@ void timed(Fn&& fn) {
 
 Session::Session(int& argc, char**& argv) {
   // Only under a launcher (mpirun, srun): a plain `mpm run` stays free of MPI start-up.
-  const bool launched = std::getenv("OMPI_COMM_WORLD_SIZE") || std::getenv("PMI_SIZE") ||
-                        std::getenv("PMIX_RANK");
+  const bool launched =
+      std::getenv("OMPI_COMM_WORLD_SIZE") || std::getenv("PMI_SIZE") || std::getenv("PMIX_RANK");
   if (!launched || initialised()) return;
   int provided = 0;
   MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
@@ -77,9 +77,15 @@ double reduce(double x, MPI_Op op) {
 
 }  // namespace
 
-double min_all(double x) { return reduce(x, MPI_MIN); }
-double max_all(double x) { return reduce(x, MPI_MAX); }
-double sum_all(double x) { return reduce(x, MPI_SUM); }
+double min_all(double x) {
+  return reduce(x, MPI_MIN);
+}
+double max_all(double x) {
+  return reduce(x, MPI_MAX);
+}
+double sum_all(double x) {
+  return reduce(x, MPI_SUM);
+}
 
 std::uint64_t sum_all(std::uint64_t x) {
   if (ranks() == 1) return x;
@@ -126,9 +132,7 @@ std::vector<double> all_gather(double x) {
 std::vector<std::uint64_t> all_gather(std::uint64_t x) {
   std::vector<std::uint64_t> out(ranks(), x);
   if (ranks() > 1)
-    timed([&] {
-      MPI_Allgather(&x, 1, MPI_UINT64_T, out.data(), 1, MPI_UINT64_T, MPI_COMM_WORLD);
-    });
+    timed([&] { MPI_Allgather(&x, 1, MPI_UINT64_T, out.data(), 1, MPI_UINT64_T, MPI_COMM_WORLD); });
   return out;
 }
 
@@ -161,8 +165,7 @@ std::vector<std::vector<char>> all_to_all(const std::vector<std::vector<char>>& 
     if (r != rank()) comm_stats().bytes += send[r].size();
   }
   timed([&] {
-    MPI_Alltoall(send_counts.data(), 1, MPI_INT, recv_counts.data(), 1, MPI_INT,
-                 MPI_COMM_WORLD);
+    MPI_Alltoall(send_counts.data(), 1, MPI_INT, recv_counts.data(), 1, MPI_INT, MPI_COMM_WORLD);
   });
   int total = 0;
   for (int r = 0; r < n; ++r) recv_offsets[r] = total, total += recv_counts[r];

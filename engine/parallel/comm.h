@@ -35,9 +35,9 @@ int ranks();
 
 /// Communication counters of this rank.
 struct CommStats {
-  double seconds = 0;         ///< Wall time inside MPI calls, s.
-  std::uint64_t bytes = 0;    ///< Bytes this rank sent.
-  std::uint64_t messages = 0; ///< Point-to-point messages (and collectives) this rank started.
+  double seconds = 0;          ///< Wall time inside MPI calls, s.
+  std::uint64_t bytes = 0;     ///< Bytes this rank sent.
+  std::uint64_t messages = 0;  ///< Point-to-point messages (and collectives) this rank started.
 };
 /// The counters of this rank so far.
 CommStats& comm_stats();

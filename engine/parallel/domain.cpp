@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <cstring>
+#include <limits>
 #include <string>
 
 #include "engine/core/error.h"
@@ -95,9 +95,8 @@ std::shared_ptr<Domain> Domain::create(const Simulation& sim) {
     const char* names = "xyz";
     throw SceneError(sim.scene().grid.loc, "grid.dims",
                      std::to_string(n) + " ranks need at least " + std::to_string(n) +
-                         " slabs of 4 cells along the grid's longest axis (" + names[axis] +
-                         ", " + std::to_string(dims[axis]) + " cells: " +
-                         std::to_string(g.blocks[axis]) +
+                         " slabs of 4 cells along the grid's longest axis (" + names[axis] + ", " +
+                         std::to_string(dims[axis]) + " cells: " + std::to_string(g.blocks[axis]) +
                          " slabs); run on fewer ranks or refine the grid");
   }
   auto d = std::shared_ptr<Domain>(new Domain());
@@ -273,9 +272,8 @@ AdvectStats Domain::combine(const AdvectStats& local) const {
   all.clamped = sum_all(static_cast<std::uint64_t>(local.clamped));
   all.nonfinite = sum_all(static_cast<std::uint64_t>(local.nonfinite));
   // A NaN speed on any rank must win the max: send it as infinity.
-  all.max_speed = max_all(std::isfinite(local.max_speed)
-                              ? static_cast<double>(local.max_speed)
-                              : std::numeric_limits<double>::infinity());
+  all.max_speed = max_all(std::isfinite(local.max_speed) ? static_cast<double>(local.max_speed)
+                                                         : std::numeric_limits<double>::infinity());
   return all;
 }
 
@@ -284,8 +282,7 @@ void Domain::keep_root_only(Simulation& sim) {
   Particles none;
   none.object_mass = sim.particles().object_mass;
   none.object_volume0 = sim.particles().object_volume0;
-  sim.replace_particles(std::move(none),
-                        std::vector<std::size_t>(sim.objects().size(), 0),
+  sim.replace_particles(std::move(none), std::vector<std::size_t>(sim.objects().size(), 0),
                         std::vector<std::vector<Real>>(sim.objects().size()));
   sim.set_totals(0, 0);
 }

@@ -35,15 +35,15 @@ Slabs balanced_slabs(const std::vector<std::uint64_t>& per_layer, int ranks, int
 
 /// What the decomposition did over a run, for report.yaml (filled on rank 0 at each frame).
 struct DomainStats {
-  int ranks = 1;                               ///< Number of ranks.
-  std::vector<std::uint64_t> particles;        ///< Particles per rank in the last frame.
-  double imbalance_max = 1;                    ///< Largest max/mean particles over the frames.
-  double imbalance_mean = 1;                   ///< Mean of max/mean over the frames.
-  std::vector<double> comm_seconds;            ///< Seconds in MPI per rank.
-  std::vector<std::uint64_t> bytes;            ///< Bytes each rank sent.
-  std::uint64_t substeps = 0;                  ///< Substeps over which `bytes` was counted.
-  std::uint64_t halo_bytes = 0;                ///< Of `bytes`, halo exchanges summed over ranks.
-  int frames = 0;                              ///< Frames distributed.
+  int ranks = 1;                         ///< Number of ranks.
+  std::vector<std::uint64_t> particles;  ///< Particles per rank in the last frame.
+  double imbalance_max = 1;              ///< Largest max/mean particles over the frames.
+  double imbalance_mean = 1;             ///< Mean of max/mean over the frames.
+  std::vector<double> comm_seconds;      ///< Seconds in MPI per rank.
+  std::vector<std::uint64_t> bytes;      ///< Bytes each rank sent.
+  std::uint64_t substeps = 0;            ///< Substeps over which `bytes` was counted.
+  std::uint64_t halo_bytes = 0;          ///< Of `bytes`, halo exchanges summed over ranks.
+  int frames = 0;                        ///< Frames distributed.
 };
 
 /// The run's split over ranks. Every method is collective: all ranks call it in the same order.

@@ -1,10 +1,9 @@
 // MPI domain decomposition (engine/parallel/): the slab rule, and `mpirun -np 2 mpm run`
 // against one rank: frames equal to round-off, repeated runs bit-identical, bad input exits 2
 // on every rank without a hang, and a checkpoint resumed on another number of ranks.
-#include <catch2/catch.hpp>
-
 #include <sys/wait.h>
 
+#include <catch2/catch.hpp>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -40,8 +39,8 @@ std::string read_text(const fs::path& file) {
 ParticleDiff worst_diff(const fs::path& a, const fs::path& b, int last) {
   ParticleDiff worst;
   for (int f = 0; f <= last; ++f) {
-    const ParticleDiff d = compare_frames(read_frame_hdf5(frame_path(a, f)),
-                                          read_frame_hdf5(frame_path(b, f)));
+    const ParticleDiff d =
+        compare_frames(read_frame_hdf5(frame_path(a, f)), read_frame_hdf5(frame_path(b, f)));
     REQUIRE(d.error.empty());
     REQUIRE(d.particles > 0);
     worst.particles = d.particles;
@@ -64,9 +63,9 @@ ParticleDiff one_against_two(const std::string& name, const std::string& scene,
   const std::string report = read_text(dir / "two" / "report.yaml");
   CHECK(report.find("ranks: 2") != std::string::npos);
   // `mpm compare` reads the two-rank run like any other, against the one-rank run.
-  const std::string compare = std::string(MPM_BINARY) + " compare " + (dir / "two").string() +
-                              " " + (dir / "one").string() + " > " +
-                              (dir / "compare.log").string() + " 2>&1";
+  const std::string compare = std::string(MPM_BINARY) + " compare " + (dir / "two").string() + " " +
+                              (dir / "one").string() + " > " + (dir / "compare.log").string() +
+                              " 2>&1";
   CHECK(std::system(compare.c_str()) == 0);
   return worst_diff(dir / "one", dir / "two", frames);
 }
@@ -103,23 +102,22 @@ constexpr double kPositionBound = 5e-7;  ///< m
 constexpr double kVelocityBound = 1e-5;  ///< m/s
 constexpr double kJBound = 1e-5;
 TEST_CASE("two ranks give the frames of one rank to round-off: two_cubes", "[parallel]") {
-  const ParticleDiff d =
-      one_against_two("two_cubes", "scenes/two_cubes.yaml",
-                      "--set grid.dims=48 --set objects[0].particles_per_cell=4 "
-                      "--set objects[1].particles_per_cell=4",
-                      6);
+  const ParticleDiff d = one_against_two("two_cubes", "scenes/two_cubes.yaml",
+                                         "--set grid.dims=48 --set objects[0].particles_per_cell=4 "
+                                         "--set objects[1].particles_per_cell=4",
+                                         6);
   CHECK(d.max_position < kPositionBound);
   CHECK(d.max_velocity < kVelocityBound);
   CHECK(d.max_J < kJBound);
 }
 
-TEST_CASE("two ranks give the frames of one rank to round-off: validation cases",
-          "[parallel]") {
-  for (const char* name : {"sphere_collision", "dam_break", "sand_slope"}) {  // collision, water, sand
+TEST_CASE("two ranks give the frames of one rank to round-off: validation cases", "[parallel]") {
+  for (const char* name :
+       {"sphere_collision", "dam_break", "sand_slope"}) {  // collision, water, sand
     INFO(name);
-    const ParticleDiff d = one_against_two(
-        name, std::string("scenes/validation/") + name + ".yaml", "",
-        std::string(name) == "sand_slope" ? 1 : 2);  // sand: 176 substeps a frame
+    const ParticleDiff d =
+        one_against_two(name, std::string("scenes/validation/") + name + ".yaml", "",
+                        std::string(name) == "sand_slope" ? 1 : 2);  // sand: 176 substeps a frame
     CHECK(d.max_position < kPositionBound);
     CHECK(d.max_velocity < kVelocityBound);
     CHECK(d.max_J < kJBound);
@@ -153,7 +151,8 @@ TEST_CASE("more ranks than slabs: an error on rank 0 and exit 2 on every rank", 
   // 7 cells per axis: 8 nodes, two 4-node slabs, for three ranks.
   const std::string args = "run " + (test::source_dir() / "scenes/jello_cube.yaml").string() +
                            " --set grid.dims=7 --set grid.buffer=2 --set objects[0].scale=0.1"
-                           " --force --out " + (dir / "out").string();
+                           " --force --out " +
+                           (dir / "out").string();
   const int code = run_mpm(3, args, dir / "log");
   const std::string log = read_text(dir / "log");
   INFO(log);
@@ -165,17 +164,20 @@ TEST_CASE("more ranks than slabs: an error on rank 0 and exit 2 on every rank", 
 TEST_CASE("a checkpoint of one rank resumes on two", "[parallel]") {
   const fs::path dir = test::temp_dir("parallel_resume");
   const std::string scene = (test::source_dir() / "scenes/two_cubes.yaml").string();
-  const std::string sets = " --set grid.dims=48 --set objects[0].particles_per_cell=4"
-                           " --set objects[1].particles_per_cell=4";
-  REQUIRE(run_mpm(1, "run " + scene + " --frames 4" + sets + " --force --out " +
-                         (dir / "whole").string(),
-                  dir / "whole.log") == 0);
-  REQUIRE(run_mpm(1, "run " + scene + " --frames 2" + sets + " --force --out " +
-                         (dir / "split").string(),
-                  dir / "first.log") == 0);
+  const std::string sets =
+      " --set grid.dims=48 --set objects[0].particles_per_cell=4"
+      " --set objects[1].particles_per_cell=4";
+  REQUIRE(
+      run_mpm(1,
+              "run " + scene + " --frames 4" + sets + " --force --out " + (dir / "whole").string(),
+              dir / "whole.log") == 0);
+  REQUIRE(
+      run_mpm(1,
+              "run " + scene + " --frames 2" + sets + " --force --out " + (dir / "split").string(),
+              dir / "first.log") == 0);
   INFO(read_text(dir / "second.log"));
-  REQUIRE(run_mpm(2, "run " + scene + " --frames 4" + sets + " --resume " +
-                         (dir / "split").string(),
+  REQUIRE(run_mpm(2,
+                  "run " + scene + " --frames 4" + sets + " --resume " + (dir / "split").string(),
                   dir / "second.log") == 0);
   const ParticleDiff d = worst_diff(dir / "whole", dir / "split", 4);
   CHECK(d.max_position < kPositionBound);
