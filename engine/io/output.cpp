@@ -1,5 +1,7 @@
 #include "engine/io/output.h"
 
+#include "engine/parallel/domain.h"
+
 #include "engine/io/atomic_file.h"
 
 #include "engine/io/bgeo.h"
@@ -415,6 +417,24 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
   y << YAML::Key << "run_particle_steps_per_second" << YAML::Value
     << (r.wall_seconds > 0 ? steps / r.wall_seconds : 0.0);
   y << YAML::Key << "clamped_particles" << YAML::Value << sim.clamped_particles();
+  // The split over MPI ranks (docs/distributed.md); one rank: no communication.
+  parallel::DomainStats ds;
+  ds.particles = {n};
+  ds.comm_seconds = {0.0};
+  ds.bytes = {0};
+  if (sim.domain()) ds = sim.domain()->stats();
+  y << YAML::Key << "ranks" << YAML::Value << ds.ranks;
+  y << YAML::Key << "particles_per_rank" << YAML::Value << YAML::Flow << ds.particles;
+  y << YAML::Key << "load_imbalance" << YAML::Value << YAML::Flow << YAML::BeginMap
+    << YAML::Key << "max" << YAML::Value << ds.imbalance_max << YAML::Key << "mean"
+    << YAML::Value << ds.imbalance_mean << YAML::EndMap;
+  y << YAML::Key << "comm_seconds" << YAML::Value << YAML::Flow << ds.comm_seconds;
+  std::vector<double> per_substep;
+  for (std::uint64_t b : ds.bytes)
+    per_substep.push_back(ds.substeps ? static_cast<double>(b) / ds.substeps : 0.0);
+  y << YAML::Key << "comm_bytes_per_substep" << YAML::Value << YAML::Flow << per_substep;
+  y << YAML::Key << "halo_bytes_per_substep" << YAML::Value
+    << (ds.substeps ? static_cast<double>(ds.halo_bytes) / ds.substeps : 0.0);
   y << YAML::Key << "stages" << YAML::Value << YAML::BeginMap;
   for (const auto& [name, seconds] : sim.stage_seconds())
     y << YAML::Key << name << YAML::Value << seconds;

@@ -22,6 +22,8 @@
 #include "engine/scene/load_scene.h"
 #include "engine/io/output.h"
 #include "engine/io/surface.h"
+#include "engine/parallel/comm.h"
+#include "engine/parallel/domain.h"
 #include "engine/run/progress.h"
 #include "engine/run/run.h"
 #include "engine/step/simulation.h"
@@ -431,7 +433,7 @@ int cmd_run(const Args& args) {
       if (std::filesystem::exists(args.output_file) && !args.force)
         throw mpm::SceneError({"-o"}, "", "'" + args.output_file +
                                               "' exists; give --force to replace this golden");
-    } else if (args.command == "run") {
+    } else if (args.command == "run" && mpm::parallel::rank() == 0) {
       try {
         mpm::prepare_output_directory(out, args.force);
       } catch (const std::exception& e) {
@@ -439,12 +441,19 @@ int cmd_run(const Args& args) {
         throw mpm::SceneError(scene.output.loc, "output.directory", e.what());
       }
     }
+    if (mpm::parallel::any_all(false)) return mpm::kExitBadInput;  // another rank failed
   } catch (const mpm::SceneError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    // Every rank stops with code 2; rank 0 says why (the same error on every rank, or its own:
+    // only rank 0 prepares the output directory).
+    if (mpm::parallel::rank() == 0) std::fprintf(stderr, "error: %s\n", e.what());
+    mpm::parallel::any_all(true);
     return mpm::kExitBadInput;
   }
-  for (const std::string& w : mpm::scene_warnings(*sim)) spdlog::warn("{}", w);
+  const bool root = mpm::parallel::rank() == 0;
+  if (root)
+    for (const std::string& w : mpm::scene_warnings(*sim)) spdlog::warn("{}", w);
   if (args.command == "validate") {
+    if (!root) return mpm::kExitOk;
     std::printf("%s: valid, %zu particles\n%s", args.scene.c_str(), sim->particles().size(),
                 mpm::scene_summary(*sim).c_str());
     return mpm::kExitOk;
@@ -454,7 +463,17 @@ int cmd_run(const Args& args) {
   // A golden writes only its summary file; a run writes its folder.
   const std::string written = args.command == "golden" ? "golden summary in " + args.output_file
                                                        : "output in " + out.string();
-  if (!args.quiet) std::printf("%s", mpm::scene_summary(*sim).c_str());
+  if (!args.quiet && root) std::printf("%s", mpm::scene_summary(*sim).c_str());
+  // Split over the ranks (each built the same state) after the one-rank checks above: a
+  // grid too thin to split is the same error on every rank.
+  if (mpm::parallel::ranks() > 1) {
+    try {
+      sim->set_domain(mpm::parallel::Domain::create(*sim));
+    } catch (const mpm::SceneError& e) {
+      if (root) std::fprintf(stderr, "error: %s\n", e.what());
+      return mpm::kExitBadInput;
+    }
+  }
   spdlog::info("{} particles, {} frames, {}", sim->particles().size(), frames, written);
   if (resumed_frame > 0) spdlog::info("resuming from frame {}", resumed_frame);
 
@@ -468,11 +487,13 @@ int cmd_run(const Args& args) {
   if (args.command == "golden") observers = {&golden};
   else observers = {&output, &summary};
   if (!args.quiet) observers.push_back(&progress);
+  if (!root) observers.clear();  // rank 0 holds every particle at each frame end
   const mpm::RunResult r =
       mpm::run_frames(*sim, frames, scene.simulation.frame_dt, observers, &g_stop,
                       resumed_frame + 1);
 
   const double steps = static_cast<double>(sim->particles().size()) * sim->substeps();
+  if (!root) return r.status == "ok" ? mpm::kExitOk : mpm::kExitRunFailed;
   std::printf("%s: %s, %zu particles, %d frames, %zu substeps in %.1f s (%.2fM particle-steps/s; "
               "%.2fM in the substep loop); %s%s\n",
               args.scene.c_str(), r.status.c_str(), sim->particles().size(), r.frames_done,
@@ -508,6 +529,10 @@ int run_cli(int argc, char** argv) {
   if (args.command == "surface") return cmd_surface(args);
   if (args.command == "bench") return cmd_bench(args);
   if (args.command == "compare") return cmd_compare(args);
+  // Under mpirun the run and validate commands split the scene over the ranks
+  // (docs/distributed.md); rank 0 alone logs and prints.
+  parallel::Session mpi(argc, argv);
+  if (parallel::rank() > 0) spdlog::set_level(spdlog::level::err);
   return cmd_run(args);
 }
 

@@ -1,6 +1,8 @@
 #include "engine/run/run.h"
 
 #include "engine/core/reduce.h"
+#include "engine/parallel/comm.h"
+#include "engine/parallel/domain.h"
 
 #include <chrono>
 #include <cmath>
@@ -26,12 +28,12 @@ std::optional<Instability> diagnose(const Simulation& sim, Real dt) {
     return Instability{buf, q < sim.particles().size() ? sim.object_of(q).name : ""};
   }
   if (a.max_speed * dt > h) {
-    const std::size_t q = sim.fastest_particle();
+    const std::size_t q = sim.fastest_particle();  // on this rank, with more than one
     std::snprintf(buf, sizeof buf,
                   "a particle moves %.3g m/s, %.2f cells per substep (more than the grid can "
                   "carry: at most 1)",
                   static_cast<double>(a.max_speed), static_cast<double>(a.max_speed * dt / h));
-    return Instability{buf, sim.object_of(q).name};
+    return Instability{buf, sim.particles().size() > 0 ? sim.object_of(q).name : ""};
   }
   return std::nullopt;
 }
@@ -89,6 +91,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
   RunResult result;
   result.dt_min = std::numeric_limits<Real>::infinity();
   const bool adaptive = sim.scene().simulation.cfl.has_value();
+  if (sim.domain()) sim.domain()->keep_root_only(sim);
   result.energy_start = result.energy_max = sim.total_energy();
   // The dt to suggest if the run goes wrong: the CFL bound at cfl 0.5, from the last healthy
   // state seen at a frame end.
@@ -110,12 +113,34 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
   auto seconds_since = [](clock::time_point t0) {
     return std::chrono::duration<double>(clock::now() - t0).count();
   };
+  // With more than one rank (engine/parallel/domain.h) the substeps run on every rank's
+  // slab, and each frame end gathers the state on rank 0, which alone checks it and calls
+  // the observers (other ranks get none); rank 0's status is then every rank's.
+  parallel::Domain* domain = sim.domain();
+  auto agree = [&] {
+    if (!domain) return;
+    parallel::broadcast(result.status);
+    parallel::broadcast(result.message);
+  };
+  // An observer's exception ends the run with status error: caught here, not by the outer
+  // handler, so that every rank leaves the frame loop at the same point.
+  auto notify = [&](auto&& call) {
+    try {
+      call();
+    } catch (const std::exception& e) {
+      if (result.status == "ok") result.status = "error", result.message = e.what();
+    }
+  };
   try {
     auto t0 = clock::now();
-    for (Observer* o : observers) o->on_start(sim, frames);
+    notify([&] {
+      for (Observer* o : observers) o->on_start(sim, frames);
+    });
     result.observer_seconds += seconds_since(t0);
+    agree();
     result.frames_done = first_frame - 1;
     for (int f = first_frame; f <= frames && result.status == "ok"; ++f) {
+      if (domain) domain->distribute(sim);
       const Real frame_end = f * frame_dt;
       // A whole number of equal substeps fills the frame, each no larger than the bound.
       int remaining_steps = 0;
@@ -156,9 +181,18 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
           break;
         }
         t0 = clock::now();
-        for (Observer* o : observers) o->on_substep(sim, f);
+        notify([&] {
+          for (Observer* o : observers) o->on_substep(sim, f);
+        });
         result.observer_seconds += seconds_since(t0);
-        if (stop && stop->load()) {
+        if (domain && parallel::any_all(result.status != "ok")) {
+          agree();
+          if (result.status == "ok") result.status = "error";
+          break;
+        }
+        if (result.status != "ok") break;
+        const bool stopping = stop && stop->load();
+        if (domain ? parallel::any_all(stopping) : stopping) {
           result.status = "interrupted";
           result.message = "stopped by a signal at substep " + std::to_string(sim.substeps()) +
                            "; the last complete frame is " + std::to_string(f - 1);
@@ -167,6 +201,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       }
       if (steps.substeps == 0) steps.dt_min = 0;
       result.steps.push_back(steps);
+      if (domain) domain->collect(sim);
       if (result.status != "ok") break;
       // Energy may only grow by the work moving walls and colliders do on the bodies.
       t0 = clock::now();
@@ -174,27 +209,39 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       result.energy_max = std::max(result.energy_max, energy);
       // The allowance scales with the energy in play: the start's, or what walls put in.
       const Real scale = std::max(std::abs(result.energy_start), std::abs(sim.wall_work()));
-      if (energy > result.energy_start + kEnergyGrowthLimit * scale + 1e-9) {
+      if (energy > result.energy_start + kEnergyGrowthLimit * scale + 1e-9 &&
+          parallel::rank() == 0) {
         char buf[200];
         std::snprintf(
             buf, sizeof buf,
             "total energy less the work of moving walls and colliders grew from %.4g J to %.4g J",
             static_cast<double>(result.energy_start), static_cast<double>(energy));
         fail({buf, ""}, f);
-        break;
       }
+      agree();
+      if (result.status != "ok") break;
       check_inversion(sim, f, inversion_warned, result.warnings);
       suggested_dt = sim.cfl_bound(cfl);
       result.check_seconds += seconds_since(t0);
       sim.set_time(frame_end);
       result.frames_done = f;
       t0 = clock::now();
-      for (Observer* o : observers) o->on_frame(sim, f);
+      notify([&] {
+        for (Observer* o : observers) o->on_frame(sim, f);
+      });
       result.observer_seconds += seconds_since(t0);
+      agree();
     }
   } catch (const std::exception& e) {
     result.status = "error";
     result.message = e.what();
+    if (domain) {
+      // Only this rank may know: the others wait in an exchange. Frames already written are
+      // whole (each is renamed into place), so stopping every rank loses nothing written.
+      spdlog::error("rank {}: {}", parallel::rank(), e.what());
+      std::fprintf(stderr, "error: rank %d: %s\n", parallel::rank(), e.what());
+      parallel::abort_all(kExitRunFailed);
+    }
   }
   if (!std::isfinite(result.dt_min)) result.dt_min = 0;
   result.wall_seconds = std::chrono::duration<double>(clock::now() - start).count();

@@ -12,6 +12,8 @@
 
 #include <cstdio>
 
+#include "engine/parallel/comm.h"
+#include "engine/parallel/domain.h"
 #include "engine/scene/mesh.h"
 #include "engine/scene/sampling.h"
 #include "engine/step/reorder.h"
@@ -164,6 +166,11 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     }
     if (!group)
       throw SceneError(od.loc, key, "material '" + od.material + "' built no material group");
+    sim->state_stride_.push_back(group->state().size() / n);
+    sim->group_factories_.push_back(
+        [create = mat->create, params = od.params, density](std::size_t count) {
+          return create(params, GroupInfo{density, count});
+        });
     sim->materials_.push_back({info.first, n, std::move(group)});
     sim->objects_.push_back(info);
   }
@@ -181,11 +188,14 @@ void Simulation::build_stages() {
     stages_.push_back({std::move(name), std::move(fn), 0.0});
   };
   add("sort", [this](Real) { sort_particles(particles_, scene_.simulation.kernel, grid_, order_); });
+  // With more than one rank: the previous rank's ghost blocks get storage here too.
+  if (domain_) add("halo_blocks", [this](Real) { domain_->share_ghost_blocks(grid_); });
   if (s.reorder_every > 0)
     add("reorder", [this](Real) {
       if (substeps_ % scene_.simulation.reorder_every != 0) return;
       std::vector<ReorderRange> ranges;
-      for (auto& m : materials_) ranges.push_back({m.first, m.count, m.material->state()});
+      for (auto& m : materials_)  // an object with no particles here (other ranks) has none
+        if (m.count > 0) ranges.push_back({m.first, m.count, m.material->state()});
       reorder_particles(ranges, order_, particles_);
     });
   // The stress of each group (object), chosen here once per group: with simulation.simd, a
@@ -206,6 +216,7 @@ void Simulation::build_stages() {
                    [](const BatchModel& b) { return b.kind != BatchModel::Kind::none; }))
     fold.clear();
   // Only what the scene calls for is stored.
+  stores_stress_ = stored;
   particles_.stress.assign(stored ? particles_.size() : 0, StoredMat3::Zero());
   particles_.stress.shrink_to_fit();
   if (stored)
@@ -213,6 +224,7 @@ void Simulation::build_stages() {
       for (std::size_t g = 0; g < materials_.size(); ++g) {
         if (g < fold.size() && fold[g].kind != BatchModel::Kind::none) continue;
         const auto& m = materials_[g];
+        if (m.count == 0) continue;  // an object with no particles on this rank
         const auto F = slice(std::as_const(particles_.F), m);
         const Real v0 = particles_.volume0(m.first);
         if (batch[g].kind != BatchModel::Kind::none)
@@ -227,6 +239,7 @@ void Simulation::build_stages() {
         particles_to_grid(particles_, order_, sd.transfer, sd.kernel, dt, grid_,
                           sd.simd ? TransferPath::simd : TransferPath::scalar, fold);
       });
+  if (domain_) add("halo_sum", [this](Real) { domain_->add_ghost_sums(grid_); });
   add("grid_update", [this](Real) { grid_update(grid_); });
   // PIC and APIC scatter the stress force as an impulse (see particles_to_grid).
   if (s.transfer == Transfer::flip)
@@ -242,6 +255,7 @@ void Simulation::build_stages() {
     add("colliders",
         [this](Real dt) { wall_work_ += apply_colliders(colliders_, time_ + dt, grid_); });
   add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
+  if (domain_) add("halo_velocity", [this](Real) { domain_->return_ghost_velocities(grid_); });
   add("grid_to_particles", [this](Real dt) {
     const SimulationDesc& sd = scene_.simulation;
     grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_,
@@ -258,12 +272,46 @@ void Simulation::build_stages() {
     last_advect_ = advect_particles(dt, grid_, particles_);
     clamped_total_ += last_advect_.clamped;
   });
+  // The run's checks see every rank's advection; particles move to their new slab's rank.
+  if (domain_)
+    add("migrate", [this](Real) {
+      const AdvectStats local = last_advect_;
+      domain_->migrate(*this);
+      last_advect_ = domain_->combine(local);
+    });
+}
+
+void Simulation::set_domain(std::shared_ptr<parallel::Domain> domain) {
+  domain_ = std::move(domain);
+  build_stages();
+}
+
+void Simulation::replace_particles(Particles&& p, const std::vector<std::size_t>& counts,
+                                   std::vector<std::vector<Real>>&& states) {
+  particles_ = std::move(p);
+  ++state_;
+  std::size_t first = 0;
+  for (std::size_t o = 0; o < objects_.size(); ++o) {
+    objects_[o].first = first;
+    objects_[o].count = counts[o];
+    MaterialRange& m = materials_[o];
+    m.first = first;
+    m.count = counts[o];
+    m.material = group_factories_[o](counts[o]);
+    const std::span<Real> state = m.material->state();
+    std::copy(states[o].begin(), states[o].begin() + std::min(states[o].size(), state.size()),
+              state.begin());
+    first += counts[o];
+  }
+  particles_.stress.assign(stores_stress_ ? particles_.size() : 0, StoredMat3::Zero());
 }
 
 Real Simulation::cfl_bound(Real cfl) const {
   Real c = 0;
   for (const auto& m : materials_)
-    c = std::max(c, m.material->max_wave_speed(slice(particles_.F, m)));
+    if (m.count > 0) c = std::max(c, m.material->max_wave_speed(slice(particles_.F, m)));
+  if (domain_) return cfl * grid_.h.minCoeff() /
+                      (parallel::max_all(c) + parallel::max_all(max_speed()));
   // dt <= C h / (c + |v|max) (references.md, "Time step").
   return cfl * grid_.h.minCoeff() / (c + max_speed());
 }

@@ -18,6 +18,10 @@
 
 namespace mpm {
 
+namespace parallel {
+class Domain;
+}
+
 /// One object after sampling: a contiguous range of particles.
 struct ObjectInfo {
   std::string name;      ///< From the scene.
@@ -117,6 +121,24 @@ class Simulation {
   Real max_speed() const;
   /// Total kinetic energy, J.
   Real kinetic_energy() const;
+
+  /// The split over MPI ranks (engine/parallel/domain.h), or nullptr for a one-rank run.
+  parallel::Domain* domain() const { return domain_.get(); }
+  /// Splits the run with `domain` (nullptr: one rank) and rebuilds the stage list, which then
+  /// holds the exchange stages (halo_blocks, halo_sum, halo_velocity, migrate).
+  void set_domain(std::shared_ptr<parallel::Domain> domain);
+  /// Replaces the particles with `p`, whose objects lie contiguous in scene order with
+  /// `counts[o]` particles each, and object o's material state with `states[o]`
+  /// (state_stride(o) values per particle); each material group is rebuilt for its new count.
+  void replace_particles(Particles&& p, const std::vector<std::size_t>& counts,
+                         std::vector<std::vector<Real>>&& states);
+  /// Material state values per particle of object `o` (0 if its material keeps none).
+  std::size_t state_stride(std::size_t o) const { return state_stride_[o]; }
+  /// Sets the run totals kept across substeps (when ranks combine theirs).
+  void set_totals(Real wall_work, std::size_t clamped) {
+    wall_work_ = wall_work;
+    clamped_total_ = clamped;
+  }
   /// Total elastic energy stored in all materials, J.
   Real elastic_energy() const;
   /// Elastic energy of each material range, in materials() order, J. Computed once per state
@@ -146,6 +168,11 @@ class Simulation {
   std::size_t state_ = 0;                          // bumped by every change of state
   mutable std::size_t energy_state_ = SIZE_MAX;    // the state range_energy_ was computed for
   mutable std::vector<Real> range_energy_;         // cache of range_elastic_energies()
+  std::shared_ptr<parallel::Domain> domain_;
+  /// Builds object o's material group for a count of particles (replace_particles).
+  std::vector<std::function<std::unique_ptr<MaterialGroup>(std::size_t)>> group_factories_;
+  std::vector<std::size_t> state_stride_;
+  bool stores_stress_ = false;
 };
 
 }  // namespace mpm
