@@ -55,23 +55,25 @@ GridDesc grid16() {
 /// Per stored node, the sum over particles of the absolute values of every term the scatter
 /// adds (mass: m w; momentum component e: |w a_e|, |w i c0_e|, ..., |grad w S|), computed from
 /// the scalar stencil: the scale the rounding error of a sum is bounded against.
+template <Kernel K>
 void absolute_sums(const Particles& p, Transfer tr, Real dt, const Grid& g,
                    std::vector<double>& am, std::vector<Vec3>& av) {
+  constexpr int N = KernelTraits<K>::kNodes;
   am.assign(g.mass.size(), 0);
   av.assign(g.mass.size(), Vec3::Zero());
-  const Vec3 inv_D = KernelTraits<Kernel::quadratic>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
+  const Vec3 inv_D = KernelTraits<K>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
   for (std::size_t q = 0; q < p.size(); ++q) {
-    const auto s = make_stencil<Kernel::quadratic>(p.x[q], g.origin, g.inv_h);
-    std::size_t nodes[27];
-    g.stencil_indices<3>(s.base, nodes);
+    const auto s = make_stencil<K>(p.x[q], g.origin, g.inv_h);
+    std::size_t nodes[N * N * N];
+    g.stencil_indices<N>(s.base, nodes);
     const Real m = p.mass(q);
     Mat3 Q = tr == Transfer::pic ? Mat3::Zero() : Mat3(m * to_real(p.C[q]));
     if (tr == Transfer::mls) Q += dt * to_real(p.stress[q]) * inv_D.asDiagonal();
     const Mat3 S = tr == Transfer::mls ? Mat3::Zero() : Mat3(dt * to_real(p.stress[q]));
     int n = 0;
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j)
-        for (int k = 0; k < 3; ++k, ++n) {
+    for (int i = 0; i < N; ++i)
+      for (int j = 0; j < N; ++j)
+        for (int k = 0; k < N; ++k, ++n) {
           const Real w = s.weight(i, j, k);
           const Vec3 gw = s.gradient(i, j, k).cwiseAbs();
           const Vec3 off = (g.position(s.base.x() + i, s.base.y() + j, s.base.z() + k) - p.x[q])
@@ -92,18 +94,20 @@ TEST_CASE("SIMD and scalar particle-to-grid give the same grid to float rounding
   }
   INFO("SIMD target " << simd::target_name());
   const Real dt = 1e-3;
+  for (Kernel kernel : {Kernel::linear, Kernel::quadratic, Kernel::cubic})
   for (Transfer tr : {Transfer::apic, Transfer::pic, Transfer::mls}) {
-    INFO("transfer " << static_cast<int>(tr));
+    if (tr == Transfer::mls && kernel == Kernel::linear) continue;
+    INFO("kernel " << static_cast<int>(kernel) << " transfer " << static_cast<int>(tr));
     const Particles p = cloud(7);
     Grid a(grid16(), false), b(grid16(), false);
     ParticleOrder ord;
-    sort_particles(p, Kernel::quadratic, a, ord);
-    sort_particles(p, Kernel::quadratic, b, ord);
-    particles_to_grid(p, ord, tr, Kernel::quadratic, dt, a, TransferPath::scalar);
-    particles_to_grid(p, ord, tr, Kernel::quadratic, dt, b, TransferPath::simd);
+    sort_particles(p, kernel, a, ord);
+    sort_particles(p, kernel, b, ord);
+    particles_to_grid(p, ord, tr, kernel, dt, a, TransferPath::scalar);
+    particles_to_grid(p, ord, tr, kernel, dt, b, TransferPath::simd);
     std::vector<double> am;
     std::vector<Vec3> av;
-    absolute_sums(p, tr, dt, a, am, av);
+    dispatch_kernel(kernel, [&]<Kernel K>() { absolute_sums<K>(p, tr, dt, a, am, av); });
     // Bound: each term is a product of at most 3 float-rounded weights with a float-rounded
     // factor and up to 7 chained FMAs (at most 12 roundings: 12 u of the term), and a cell's
     // particles are summed in float (at most n_cell - 1 more roundings of the partial sum,

@@ -34,6 +34,7 @@ namespace hn = hwy::HWY_NAMESPACE;
 using DF = hn::ScalableTag<float>;
 using DI = hn::RebindToSigned<DF>;
 using VF = hn::Vec<DF>;
+using VI = hn::Vec<DI>;
 constexpr std::size_t kLanes = HWY_LANES(float);  ///< Lanes of a full vector on this target.
 
 /// Rounds a grid value to float storage if the grid stores float (grid.precision: float).
@@ -133,9 +134,80 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
   }
 }
 
+/// What the scatter needs of the particles order[b0, b1) (kLanes of them, clamped to the
+/// range's end), one row or one lane per particle: the 1D weights and their gradients (from
+/// the double stencil, rounded once), the stencil base, and the factors of the node values,
+/// computed in lanes (one particle per lane) from the float-stored C and stress, so the
+/// per-particle loop only loads them.
+template <int N>
+struct ScatterBatch {
+  std::size_t b0 = 0, b1 = 0;              ///< The batch is order[b0, b1).
+  alignas(64) float w[kLanes][3][kLanes];  ///< w[l][axis][k]: 1D weight of node base + k.
+  alignas(64) float dw[kLanes][3][kLanes]; ///< dw[l][axis][k]: its derivative, 1/m.
+  std::int32_t base[kLanes][3];            ///< The stencil's first node per axis.
+  alignas(64) float m[kLanes];             ///< Particle mass, kg.
+  alignas(64) float a[3][kLanes];          ///< m v + Q (x_base - x_p): momentum at node 0.
+  alignas(64) float c[3][3][kLanes];       ///< c[e][a] = Q_ea h_a: momentum per node index.
+  alignas(64) float s[3][3][kLanes];       ///< s[e][a] = dt (-V0 tau)_ea: impulse per grad w.
+};
+
+/// Fills `pb` with order[b0, min(b0 + kLanes, end)); `sb` holds their stresses after.
+template <Kernel K, Transfer T>
+void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
+                const Grid& g, Real dt, std::size_t b0, std::size_t end, StressBatch& sb,
+                ScatterBatch<KernelTraits<K>::kNodes>& pb) {
+  constexpr int N = KernelTraits<K>::kNodes;
+  constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
+  const DF d;
+  fill_stress(p, ord, fold, b0, end, sb);
+  pb.b0 = sb.b0;
+  pb.b1 = sb.b1;
+  const std::size_t count = pb.b1 - pb.b0;
+  alignas(64) float corner[3][kLanes], vel[3][kLanes], cm[3][3][kLanes];
+  for (std::size_t l = 0; l < kLanes; ++l) {
+    const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
+    const auto st = make_stencil<K>(p.x[pi], g.origin, g.inv_h);
+    for (int a = 0; a < 3; ++a) {
+      pb.base[l][a] = st.base[a];
+      for (int k = 0; k < N; ++k) {
+        pb.w[l][a][k] = static_cast<float>(st.w[a][k]);
+        pb.dw[l][a][k] = static_cast<float>(st.dw[a][k]);
+      }
+      corner[a][l] = static_cast<float>(g.origin[a] + st.base[a] * g.h[a] - p.x[pi][a]);
+      vel[a][l] = static_cast<float>(p.v[pi][a]);
+    }
+    pb.m[l] = static_cast<float>(p.mass(pi));
+    if constexpr (kAffine) {
+      const StoredReal* C = p.C[pi].data();  // column-major
+      for (int e = 0; e < 3; ++e)
+        for (int a = 0; a < 3; ++a) cm[e][a][l] = static_cast<float>(C[3 * a + e]);
+    }
+  }
+  // Momentum at node (i, j, k): m v + Q (x_base + (i, j, k) h - x_p) = a + i c0 + j c1 + k c2,
+  // Q = m C (APIC) or m C + dt (-V0 tau) D^-1 (MLS, Hu et al. 2018, eq. 29).
+  const VF m = hn::Load(d, pb.m);
+  const Vec3 inv_D = KernelTraits<K>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
+  for (int e = 0; e < 3; ++e) {
+    VF a = hn::Mul(m, hn::Load(d, vel[e]));
+    for (int b = 0; b < 3; ++b) {
+      const VF tau = hn::Load(d, sb.tau[3 * b + e]);  // column-major, as stored
+      if constexpr (kAffine) {
+        VF Q = hn::Mul(m, hn::Load(d, cm[e][b]));
+        if constexpr (T == Transfer::mls)
+          Q = hn::MulAdd(hn::Set(d, static_cast<float>(dt * inv_D[b])), tau, Q);
+        a = hn::MulAdd(Q, hn::Load(d, corner[b]), a);
+        hn::Store(hn::Mul(Q, hn::Set(d, static_cast<float>(g.h[b]))), d, pb.c[e][b]);
+      }
+      hn::Store(hn::Mul(hn::Set(d, static_cast<float>(dt)), tau), d, pb.s[e][b]);
+    }
+    hn::Store(a, d, pb.a[e]);
+  }
+}
+
 /// Scatters order[begin, end) (the grid cleared): one lane per stencil node. For each
 /// particle the node values are affine in the node's (i, j, k) and products of the 1D
-/// weights, which are looked up per lane from three small tables.
+/// weights, which are looked up per lane from three small tables. The particles' own factors
+/// come from ScatterBatch, kLanes particles at a time.
 template <Kernel K, Transfer T>
 void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t begin,
                    std::size_t end, Real dt, std::span<const BatchModel> fold, Grid& g) {
@@ -155,10 +227,9 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
     fi[n] = static_cast<float>(ti[n]), fj[n] = static_cast<float>(tj[n]);
     fk[n] = static_cast<float>(tk[n]);
   }
-  const Vec3 inv_D = Traits::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
-  alignas(64) float wt[3][kLanes] = {}, dwt[3][kLanes] = {};
   alignas(64) float out[4][NV * kLanes];
   StressBatch sb;
+  ScatterBatch<N> pb;
   for (std::size_t q = begin; q < end;) {
     const std::uint32_t cell = ord.keys[ord.order[q]];
     VF acc[4][NV];  // mass, momentum x, y, z per node
@@ -166,32 +237,22 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
       for (VF& v : a) v = hn::Zero(d);
     Vec3i base = Vec3i::Zero();
     for (; q < end && ord.keys[ord.order[q]] == cell; ++q) {
-      const std::uint32_t pi = ord.order[q];
-      const auto s = make_stencil<K>(p.x[pi], g.origin, g.inv_h);
-      base = s.base;
-      for (int a = 0; a < 3; ++a)
-        for (int k = 0; k < N; ++k) {
-          wt[a][k] = static_cast<float>(s.w[a][k]);
-          dwt[a][k] = static_cast<float>(s.dw[a][k]);
+      if (q >= pb.b1) fill_batch<K, T>(p, ord, fold, g, dt, q, end, sb, pb);
+      const std::size_t l = q - pb.b0;
+      base = Vec3i(pb.base[l][0], pb.base[l][1], pb.base[l][2]);
+      const VF W0 = hn::Load(d, pb.w[l][0]), W1 = hn::Load(d, pb.w[l][1]),
+               W2 = hn::Load(d, pb.w[l][2]);
+      const VF D0 = hn::Load(d, pb.dw[l][0]), D1 = hn::Load(d, pb.dw[l][1]),
+               D2 = hn::Load(d, pb.dw[l][2]);
+      const VF mv = hn::Set(d, pb.m[l]);
+      VF av[3], c[3][3], S[3][3];
+      for (int e = 0; e < 3; ++e) {
+        av[e] = hn::Set(d, pb.a[e][l]);
+        for (int b = 0; b < 3; ++b) {
+          if constexpr (kAffine) c[e][b] = hn::Set(d, pb.c[e][b][l]);
+          if constexpr (kStress) S[e][b] = hn::Set(d, pb.s[e][b][l]);
         }
-      // Momentum at node (i, j, k): m v + Q (corner + (i, j, k) h - x) = a + i c0 + j c1 + k c2,
-      // Q = m C (APIC) or m C + dt (-V0 tau) D^-1 (MLS, Hu et al. 2018, eq. 29).
-      if (q >= sb.b1) fill_stress(p, ord, fold, q, end, sb);
-      Mat3 stress;  // -V0 tau, as float (as stored by the stress stage)
-      for (int e = 0; e < 9; ++e) stress.data()[e] = sb.tau[e][q - sb.b0];
-      const Real m = p.mass(pi);
-      Vec3 av = m * p.v[pi];
-      Mat3 c = Mat3::Zero();
-      if constexpr (kAffine) {
-        Mat3 Q = m * to_real(p.C[pi]);
-        if constexpr (T == Transfer::mls) Q += dt * stress * inv_D.asDiagonal();
-        av += Q * (g.position(base.x(), base.y(), base.z()) - p.x[pi]);
-        c = Q * g.h.asDiagonal();
       }
-      const Mat3 S = dt * stress;  // impulse dt f = dt (-V0 tau) grad w
-      const VF W0 = hn::Load(d, wt[0]), W1 = hn::Load(d, wt[1]), W2 = hn::Load(d, wt[2]);
-      const VF D0 = hn::Load(d, dwt[0]), D1 = hn::Load(d, dwt[1]), D2 = hn::Load(d, dwt[2]);
-      const VF mv = hn::Set(d, static_cast<float>(m));
       for (int v = 0; v < NV; ++v) {
         const auto Ii = hn::SetTableIndices(d, ti + v * kLanes);
         const auto Ij = hn::SetTableIndices(d, tj + v * kLanes);
@@ -209,17 +270,17 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
         const VF I = hn::Load(d, fi + v * kLanes), J = hn::Load(d, fj + v * kLanes),
                  Kk = hn::Load(d, fk + v * kLanes);
         for (int e = 0; e < 3; ++e) {
-          VF t = hn::Set(d, static_cast<float>(av[e]));
+          VF t = av[e];
           if constexpr (kAffine) {
-            t = hn::MulAdd(I, hn::Set(d, static_cast<float>(c(e, 0))), t);
-            t = hn::MulAdd(J, hn::Set(d, static_cast<float>(c(e, 1))), t);
-            t = hn::MulAdd(Kk, hn::Set(d, static_cast<float>(c(e, 2))), t);
+            t = hn::MulAdd(I, c[e][0], t);
+            t = hn::MulAdd(J, c[e][1], t);
+            t = hn::MulAdd(Kk, c[e][2], t);
           }
           VF sum = hn::MulAdd(w, t, acc[1 + e][v]);
           if constexpr (kStress) {
-            sum = hn::MulAdd(gx, hn::Set(d, static_cast<float>(S(e, 0))), sum);
-            sum = hn::MulAdd(gy, hn::Set(d, static_cast<float>(S(e, 1))), sum);
-            sum = hn::MulAdd(gz, hn::Set(d, static_cast<float>(S(e, 2))), sum);
+            sum = hn::MulAdd(gx, S[e][0], sum);
+            sum = hn::MulAdd(gy, S[e][1], sum);
+            sum = hn::MulAdd(gz, S[e][2], sum);
           }
           acc[1 + e][v] = sum;
         }
@@ -255,27 +316,55 @@ void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt,
 template <Kernel K, Transfer T>
 void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Particles& p) {
   using Traits = KernelTraits<K>;
-  constexpr int N = Traits::kNodes, kNodes = N * N * N;
+  constexpr int N = Traits::kNodes;
   constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
   constexpr bool kGrad = T != Transfer::mls;  // MLS updates F with C, not with grad w
   const DF d;
   const DI di;
   alignas(64) float dist[3][kLanes], corner[3][kLanes], Fin[9][kLanes];
-  alignas(64) std::int32_t idx[kNodes][kLanes];
+  alignas(64) std::int32_t base[3][kLanes];
   for (std::size_t l = 0; l < kLanes; ++l) {
     const std::size_t q = q0 + std::min(l, count - 1);
-    Vec3i base;
     for (int a = 0; a < 3; ++a) {
       const Real fx = (p.x[q][a] - g.origin[a]) * g.inv_h[a];
-      base[a] = Traits::base(fx);
-      dist[a][l] = static_cast<float>(fx - base[a]);
-      corner[a][l] = static_cast<float>(g.origin[a] + base[a] * g.h[a] - p.x[q][a]);
+      base[a][l] = Traits::base(fx);
+      dist[a][l] = static_cast<float>(fx - base[a][l]);
+      corner[a][l] = static_cast<float>(g.origin[a] + base[a][l] * g.h[a] - p.x[q][a]);
     }
-    std::size_t nodes[kNodes];
-    g.stencil_indices<N>(base, nodes);
-    for (int n = 0; n < kNodes; ++n) idx[n][l] = static_cast<std::int32_t>(nodes[n]);
     const StoredReal* F = p.F[q].data();
     for (int e = 0; e < 9; ++e) Fin[e][l] = static_cast<float>(F[e]);
+  }
+  // Storage index of node base + (i, j, k), per lane, as Grid::stencil_indices computes it:
+  // the slot of the node's block times 64, plus the node's offset in the block. A stencil
+  // spans at most two blocks per axis (block b0 or b0 + 1: `up`), so the slots of the eight
+  // blocks are gathered from the page table once per batch and chosen per node by blends.
+  // A block the lane's stencil does not reach is clamped into the domain and never chosen.
+  VI off[3][N], slots[2][2][2];
+  hn::Mask<DI> up[3][N];
+  {
+    const std::int32_t stride[3] = {g.blocks.y() * g.blocks.z(), g.blocks.z(), 1};
+    const VI mask = hn::Set(di, Grid::kBlockEdge - 1);
+    VI page[3][2];
+    for (int a = 0; a < 3; ++a) {
+      const VI b = hn::Load(di, base[a]);
+      const VI b0 = hn::ShiftRight<Grid::kBlockBits>(b);
+      const VI last = hn::Set(di, g.blocks[a] - 1);
+      for (int h = 0; h < 2; ++h)
+        page[a][h] = hn::Mul(hn::Min(hn::Add(b0, hn::Set(di, h)), last), hn::Set(di, stride[a]));
+      for (int t = 0; t < N; ++t) {
+        const VI s = hn::Add(hn::And(b, mask), hn::Set(di, t));  // offset from block b0
+        up[a][t] = hn::Gt(s, mask);
+        const VI o = hn::And(s, mask);
+        off[a][t] = a == 0   ? hn::ShiftLeft<2 * Grid::kBlockBits>(o)
+                    : a == 1 ? hn::ShiftLeft<Grid::kBlockBits>(o)
+                             : o;
+      }
+    }
+    for (int x = 0; x < 2; ++x)
+      for (int y = 0; y < 2; ++y)
+        for (int z = 0; z < 2; ++z)
+          slots[x][y][z] = hn::GatherIndex(
+              di, g.slot.data(), hn::Add(hn::Add(page[0][x], page[1][y]), page[2][z]));
   }
   VF w[3][N], dw[3][N];
   for (int a = 0; a < 3; ++a) {
@@ -292,13 +381,19 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     sv[e] = hn::Zero(d);
     for (int a = 0; a < 3; ++a) sg[e][a] = sb[e][a] = hn::Zero(d);
   }
-  int n = 0;
   for (int i = 0; i < N; ++i)
     for (int j = 0; j < N; ++j) {
       VF r0[3], r1[3], r2[3];
       for (int e = 0; e < 3; ++e) r0[e] = r1[e] = r2[e] = hn::Zero(d);
-      for (int k = 0; k < N; ++k, ++n) {
-        const auto vi = hn::Load(di, idx[n]);
+      const VI oij = hn::Add(off[0][i], off[1][j]);
+      VI sij[2];  // the slots of this row's two z blocks
+      for (int z = 0; z < 2; ++z)
+        sij[z] = hn::IfThenElse(
+            up[1][j], hn::IfThenElse(up[0][i], slots[1][1][z], slots[0][1][z]),
+            hn::IfThenElse(up[0][i], slots[1][0][z], slots[0][0][z]));
+      for (int k = 0; k < N; ++k) {
+        const VI sl = hn::IfThenElse(up[2][k], sij[1], sij[0]);
+        const VI vi = hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl), hn::Add(oij, off[2][k]));
         const VF kw = hn::Mul(hn::Set(d, static_cast<float>(k)), w[2][k]);
         for (int e = 0; e < 3; ++e) {
           const VF ve = hn::GatherIndex(d, vel[e], vi);
