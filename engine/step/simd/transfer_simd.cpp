@@ -43,9 +43,11 @@ inline Real store_node(Real v, bool float_nodes) {
 }
 
 /// 1D weights and their derivatives (per cell) of kernel K at d = fx - base, one lane per
-/// particle: the vector form of KernelTraits<K>::weights.
-template <Kernel K>
-void lane_weights(DF d, VF x, VF* w, VF* dw) {
+/// particle, in float or double lanes: the vector form of KernelTraits<K>::weights.
+template <Kernel K, class D, class V = hn::Vec<D>>
+void lane_weights(D d, V x, V* w, V* dw) {
+  using VF = V;
+  using T = hn::TFromD<D>;
   const VF one = hn::Set(d, 1.0f), half = hn::Set(d, 0.5f);
   if constexpr (K == Kernel::linear) {
     w[0] = hn::Sub(one, x);
@@ -62,7 +64,7 @@ void lane_weights(DF d, VF x, VF* w, VF* dw) {
     dw[2] = c;
   } else {
     const VF a = hn::Sub(hn::Set(d, 2.0f), x), b = hn::Sub(x, one);  // c = a, e = b
-    const VF sixth = hn::Set(d, 1.0f / 6), two3 = hn::Set(d, 2.0f / 3);
+    const VF sixth = hn::Set(d, static_cast<T>(1.0 / 6)), two3 = hn::Set(d, static_cast<T>(2.0 / 3));
     const VF a2 = hn::Mul(a, a), b2 = hn::Mul(b, b);
     w[0] = hn::Mul(hn::Mul(a2, a), sixth);
     w[1] = hn::Add(hn::Sub(hn::Mul(half, hn::Mul(b2, b)), b2), two3);
@@ -164,16 +166,13 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
   pb.b1 = sb.b1;
   const std::size_t count = pb.b1 - pb.b0;
   alignas(64) float corner[3][kLanes], vel[3][kLanes], cm[3][3][kLanes];
+  alignas(64) float wl[3][N][kLanes], dwl[3][N][kLanes];
+  alignas(64) double xs[3][kLanes];
+  alignas(64) std::int32_t bl[3][kLanes];
   for (std::size_t l = 0; l < kLanes; ++l) {
     const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
-    const auto st = make_stencil<K>(p.x[pi], g.origin, g.inv_h);
     for (int a = 0; a < 3; ++a) {
-      pb.base[l][a] = st.base[a];
-      for (int k = 0; k < N; ++k) {
-        pb.w[l][a][k] = static_cast<float>(st.w[a][k]);
-        pb.dw[l][a][k] = static_cast<float>(st.dw[a][k]);
-      }
-      corner[a][l] = static_cast<float>(g.origin[a] + st.base[a] * g.h[a] - p.x[pi][a]);
+      xs[a][l] = p.x[pi][a];
       vel[a][l] = static_cast<float>(p.v[pi][a]);
     }
     pb.m[l] = static_cast<float>(p.mass(pi));
@@ -183,6 +182,37 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
         for (int a = 0; a < 3; ++a) cm[e][a][l] = static_cast<float>(C[3 * a + e]);
     }
   }
+  // The stencil (base, 1D weights and derivatives) in double lanes, as make_stencil computes
+  // it, each value rounded to float once.
+  const hn::ScalableTag<double> dd;
+  const hn::Rebind<float, decltype(dd)> dh;
+  const hn::Rebind<std::int32_t, decltype(dd)> dih;
+  constexpr double kShift = K == Kernel::quadratic ? 0.5 : 0.0;  // KernelTraits<K>::base
+  constexpr double kFirst = K == Kernel::cubic ? -1.0 : 0.0;
+  for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd))
+    for (int a = 0; a < 3; ++a) {
+      const auto fx = hn::Mul(hn::Sub(hn::Load(dd, xs[a] + h), hn::Set(dd, g.origin[a])),
+                              hn::Set(dd, g.inv_h[a]));
+      const auto b = hn::Add(hn::Floor(hn::Sub(fx, hn::Set(dd, kShift))), hn::Set(dd, kFirst));
+      hn::Vec<decltype(dd)> w[N], dw[N];
+      lane_weights<K>(dd, hn::Sub(fx, b), w, dw);
+      for (int k = 0; k < N; ++k) {
+        hn::Store(hn::DemoteTo(dh, w[k]), dh, wl[a][k] + h);
+        hn::Store(hn::DemoteTo(dh, hn::Mul(dw[k], hn::Set(dd, g.inv_h[a]))), dh, dwl[a][k] + h);
+      }
+      const auto corner_a = hn::Sub(hn::MulAdd(b, hn::Set(dd, g.h[a]), hn::Set(dd, g.origin[a])),
+                                    hn::Load(dd, xs[a] + h));
+      hn::Store(hn::DemoteTo(dh, corner_a), dh, corner[a] + h);
+      hn::Store(hn::DemoteTo(dih, b), dih, bl[a] + h);
+    }
+  for (std::size_t l = 0; l < kLanes; ++l)
+    for (int a = 0; a < 3; ++a) {
+      pb.base[l][a] = bl[a][l];
+      for (int k = 0; k < N; ++k) {
+        pb.w[l][a][k] = wl[a][k][l];
+        pb.dw[l][a][k] = dwl[a][k][l];
+      }
+    }
   // Momentum at node (i, j, k): m v + Q (x_base + (i, j, k) h - x_p) = a + i c0 + j c1 + k c2,
   // Q = m C (APIC) or m C + dt (-V0 tau) D^-1 (MLS, Hu et al. 2018, eq. 29).
   const VF m = hn::Load(d, pb.m);
