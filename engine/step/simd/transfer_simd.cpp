@@ -402,8 +402,13 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     const VF s = hn::Set(d, static_cast<float>(g.inv_h[a]));
     for (int k = 0; k < N; ++k) dw[a][k] = hn::Mul(dw[a][k], s);
   }
-  const float* vel[3] = {g.velocity_f.data(), g.velocity_f.data() + g.mass.size(),
-                         g.velocity_f.data() + 2 * g.mass.size()};
+  // Node velocities: (x, y) pairs gathered as one 64-bit value per lane (half the gathers'
+  // elements of two 32-bit gathers), then split into x and y lanes; z on its own.
+  const std::uint64_t* vel_xy = reinterpret_cast<const std::uint64_t*>(g.velocity_f.data());
+  const float* vel_z = g.velocity_f.data() + 2 * g.mass.size();
+  const hn::Repartition<std::uint64_t, DF> du64;
+  const hn::Repartition<std::int64_t, DF> di64;
+  const hn::Half<DI> dih;
   // Each (i, j) row of the stencil summed over k first (r0: w2, r1: dw2, r2: k w2), then the
   // rows: v, grad v (column a: d/dx_a) and the index moments sum w v (i, j, k) for B.
   VF sv[3], sg[3][3], sb[3][3];
@@ -425,8 +430,14 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
         const VI sl = hn::IfThenElse(up[2][k], sij[1], sij[0]);
         const VI vi = hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl), hn::Add(oij, off[2][k]));
         const VF kw = hn::Mul(hn::Set(d, static_cast<float>(k)), w[2][k]);
+        const VF lo = hn::BitCast(
+            d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::LowerHalf(dih, vi))));
+        const VF hi = hn::BitCast(
+            d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::UpperHalf(dih, vi))));
+        const VF v3[3] = {hn::ConcatEven(d, hi, lo), hn::ConcatOdd(d, hi, lo),
+                          hn::GatherIndex(d, vel_z, vi)};
         for (int e = 0; e < 3; ++e) {
-          const VF ve = hn::GatherIndex(d, vel[e], vi);
+          const VF ve = v3[e];
           r0[e] = hn::MulAdd(w[2][k], ve, r0[e]);
           if constexpr (kGrad) r1[e] = hn::MulAdd(dw[2][k], ve, r1[e]);
           if constexpr (kAffine) r2[e] = hn::MulAdd(kw, ve, r2[e]);
@@ -557,14 +568,16 @@ void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, 
 }
 
 void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p) {
-  // Node velocities in float, one array per axis, for the lane gathers.
+  // Node velocities in float for the lane gathers: (x, y) pairs, then all z.
   const std::size_t nodes = grid.mass.size();
   grid.velocity_f.resize(3 * nodes);
   const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(nodes);
 #pragma omp parallel for schedule(static) if (count >= kParallelMinItems)
-  for (std::ptrdiff_t i = 0; i < count; ++i)
-    for (int a = 0; a < 3; ++a)
-      grid.velocity_f[a * nodes + i] = static_cast<float>(grid.velocity[i][a]);
+  for (std::ptrdiff_t i = 0; i < count; ++i) {
+    grid.velocity_f[2 * i] = static_cast<float>(grid.velocity[i].x());
+    grid.velocity_f[2 * i + 1] = static_cast<float>(grid.velocity[i].y());
+    grid.velocity_f[2 * nodes + i] = static_cast<float>(grid.velocity[i].z());
+  }
   HWY_DYNAMIC_DISPATCH(GatherImpl)(grid, transfer, kernel, dt, p);
 }
 
