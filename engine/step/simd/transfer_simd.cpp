@@ -364,6 +364,32 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     const StoredReal* F = p.F[q].data();
     for (int e = 0; e < 9; ++e) Fin[e][l] = static_cast<float>(F[e]);
   }
+  // Runs of lanes with the same stencil cell (the reorder stage keeps a cell's particles
+  // together): with at most kMaxRuns runs in the batch, each run's node velocities are loaded
+  // once and spread to its lanes by blends, instead of gathered lane by lane. The values are
+  // the same either way.
+  constexpr int kMaxRuns = 3;
+  alignas(64) std::int32_t run_of[kLanes];
+  std::size_t run_first[kMaxRuns] = {};
+  int runs = 1;
+  run_of[0] = 0;
+  for (std::size_t l = 1; l < kLanes; ++l) {
+    if (base[0][l] != base[0][l - 1] || base[1][l] != base[1][l - 1] ||
+        base[2][l] != base[2][l - 1]) {
+      if (runs < kMaxRuns) run_first[runs] = l;
+      ++runs;
+    }
+    run_of[l] = runs - 1;
+  }
+  const bool few = runs <= kMaxRuns;
+  std::size_t run_nodes[kMaxRuns][N * N * N];
+  hn::Mask<DF> in_run[kMaxRuns];
+  if (few)
+    for (int r = 0; r < runs; ++r) {
+      const std::size_t l = run_first[r];
+      g.stencil_indices<N>(Vec3i(base[0][l], base[1][l], base[2][l]), run_nodes[r]);
+      in_run[r] = hn::RebindMask(d, hn::Eq(hn::Load(di, run_of), hn::Set(di, r)));
+    }
   // Storage index of node base + (i, j, k), per lane, as Grid::stencil_indices computes it:
   // the slot of the node's block times 64, plus the node's offset in the block. A stencil
   // spans at most two blocks per axis (block b0 or b0 + 1: `up`), so the slots of the eight
@@ -393,7 +419,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     for (int x = 0; x < 2; ++x)
       for (int y = 0; y < 2; ++y)
         for (int z = 0; z < 2; ++z)
-          slots[x][y][z] = hn::GatherIndex(
+          slots[x][y][z] = few ? hn::Zero(di) : hn::GatherIndex(
               di, g.slot.data(), hn::Add(hn::Add(page[0][x], page[1][y]), page[2][z]));
   }
   VF w[3][N], dw[3][N];
@@ -427,15 +453,31 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
             up[1][j], hn::IfThenElse(up[0][i], slots[1][1][z], slots[0][1][z]),
             hn::IfThenElse(up[0][i], slots[1][0][z], slots[0][0][z]));
       for (int k = 0; k < N; ++k) {
-        const VI sl = hn::IfThenElse(up[2][k], sij[1], sij[0]);
-        const VI vi = hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl), hn::Add(oij, off[2][k]));
         const VF kw = hn::Mul(hn::Set(d, static_cast<float>(k)), w[2][k]);
-        const VF lo = hn::BitCast(
-            d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::LowerHalf(dih, vi))));
-        const VF hi = hn::BitCast(
-            d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::UpperHalf(dih, vi))));
-        const VF v3[3] = {hn::ConcatEven(d, hi, lo), hn::ConcatOdd(d, hi, lo),
-                          hn::GatherIndex(d, vel_z, vi)};
+        VF v3[3];
+        if (few) {
+          const int n = (i * N + j) * N + k;
+          const float* vf = g.velocity_f.data();
+          for (int e = 0; e < 3; ++e) {
+            auto node = [&](int r) {
+              const std::size_t x = run_nodes[r][n];
+              return hn::Set(d, e < 2 ? vf[2 * x + e] : vel_z[x]);
+            };
+            v3[e] = node(0);
+            for (int r = 1; r < runs; ++r) v3[e] = hn::IfThenElse(in_run[r], node(r), v3[e]);
+          }
+        } else {
+          const VI sl = hn::IfThenElse(up[2][k], sij[1], sij[0]);
+          const VI vi =
+              hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl), hn::Add(oij, off[2][k]));
+          const VF lo = hn::BitCast(
+              d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::LowerHalf(dih, vi))));
+          const VF hi = hn::BitCast(
+              d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::UpperHalf(dih, vi))));
+          v3[0] = hn::ConcatEven(d, hi, lo);
+          v3[1] = hn::ConcatOdd(d, hi, lo);
+          v3[2] = hn::GatherIndex(d, vel_z, vi);
+        }
         for (int e = 0; e < 3; ++e) {
           const VF ve = v3[e];
           r0[e] = hn::MulAdd(w[2][k], ve, r0[e]);
