@@ -26,7 +26,9 @@ namespace HWY_NAMESPACE {
 void ScatterImpl(const Particles&, const ParticleOrder&, Transfer, Kernel, Real,
                  std::span<const BatchModel>, Grid&) {}
 void GatherImpl(const Grid&, Transfer, Kernel, Real, Particles&) {}
-const char* TargetImpl() { return nullptr; }
+const char* TargetImpl() {
+  return nullptr;
+}
 #else
 namespace {
 
@@ -44,7 +46,7 @@ inline Real store_node(Real v, bool float_nodes) {
 
 /// 1D weights and their derivatives (per cell) of kernel K at d = fx - base, one lane per
 /// particle, in float or double lanes: the vector form of KernelTraits<K>::weights.
-template <Kernel K, class D, class V = hn::Vec<D>>
+template <Kernel K, class D, class V = hn::Vec<D> >
 void lane_weights(D d, V x, V* w, V* dw) {
   using VF = V;
   using T = hn::TFromD<D>;
@@ -64,7 +66,8 @@ void lane_weights(D d, V x, V* w, V* dw) {
     dw[2] = c;
   } else {
     const VF a = hn::Sub(hn::Set(d, 2.0f), x), b = hn::Sub(x, one);  // c = a, e = b
-    const VF sixth = hn::Set(d, static_cast<T>(1.0 / 6)), two3 = hn::Set(d, static_cast<T>(2.0 / 3));
+    const VF sixth = hn::Set(d, static_cast<T>(1.0 / 6)),
+             two3 = hn::Set(d, static_cast<T>(2.0 / 3));
     const VF a2 = hn::Mul(a, a), b2 = hn::Mul(b, b);
     w[0] = hn::Mul(hn::Mul(a2, a), sixth);
     w[1] = hn::Add(hn::Sub(hn::Mul(half, hn::Mul(b2, b)), b2), two3);
@@ -82,8 +85,8 @@ void lane_weights(D d, V x, V* w, V* dw) {
 /// computed in lanes for the objects whose model `fold` names (the stress folded into the
 /// scatter, so it is never stored), read from p.stress for the others.
 struct StressBatch {
-  std::size_t b0 = 0, b1 = 0;          ///< The batch is order[b0, b1).
-  alignas(64) float tau[9][kLanes];    ///< -V0 tau per lane, column-major.
+  std::size_t b0 = 0, b1 = 0;        ///< The batch is order[b0, b1).
+  alignas(64) float tau[9][kLanes];  ///< -V0 tau per lane, column-major.
 };
 
 /// Fills `sb` with the stresses of order[b0, min(b0 + kLanes, end)).
@@ -110,8 +113,8 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
   if (any) {
     hn::Vec<DF> fv[9], tau[9];
     for (int e = 0; e < 9; ++e) fv[e] = hn::Load(d, in[e]);
-    const auto m = corotated::neg_v0_tau(d, fv, hn::Load(d, mu2), hn::Load(d, lam),
-                                         hn::Load(d, nv0), tau);
+    const auto m =
+        corotated::neg_v0_tau(d, fv, hn::Load(d, mu2), hn::Load(d, lam), hn::Load(d, nv0), tau);
     for (int e = 0; e < 9; ++e) hn::Store(tau[e], d, sb.tau[e]);
     if (!hn::AllFalse(d, m)) {
       alignas(8) std::uint8_t bits[8] = {};
@@ -128,8 +131,9 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
     // give to float accuracy: the scalar double model, as simd::stress does.
     StoredMat3 t;
     if (lane)
-      t = to_stored(-p.object_volume0[o] *
-                    materials::FixedCorotated{fold[o].mu, fold[o].lambda}.kirchhoff(to_real(p.F[pi])));
+      t = to_stored(
+          -p.object_volume0[o] *
+          materials::FixedCorotated{fold[o].mu, fold[o].lambda}.kirchhoff(to_real(p.F[pi])));
     else
       t = p.stress[pi];
     for (int e = 0; e < 9; ++e) sb.tau[e][l] = static_cast<float>(t.data()[e]);
@@ -143,14 +147,14 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
 /// per-particle loop only loads them.
 template <int N>
 struct ScatterBatch {
-  std::size_t b0 = 0, b1 = 0;              ///< The batch is order[b0, b1).
-  alignas(64) float w[kLanes][3][kLanes];  ///< w[l][axis][k]: 1D weight of node base + k.
-  alignas(64) float dw[kLanes][3][kLanes]; ///< dw[l][axis][k]: its derivative, 1/m.
-  std::int32_t base[kLanes][3];            ///< The stencil's first node per axis.
-  alignas(64) float m[kLanes];             ///< Particle mass, kg.
-  alignas(64) float a[3][kLanes];          ///< m v + Q (x_base - x_p): momentum at node 0.
-  alignas(64) float c[3][3][kLanes];       ///< c[e][a] = Q_ea h_a: momentum per node index.
-  alignas(64) float s[3][3][kLanes];       ///< s[e][a] = dt (-V0 tau)_ea: impulse per grad w.
+  std::size_t b0 = 0, b1 = 0;               ///< The batch is order[b0, b1).
+  alignas(64) float w[kLanes][3][kLanes];   ///< w[l][axis][k]: 1D weight of node base + k.
+  alignas(64) float dw[kLanes][3][kLanes];  ///< dw[l][axis][k]: its derivative, 1/m.
+  std::int32_t base[kLanes][3];             ///< The stencil's first node per axis.
+  alignas(64) float m[kLanes];              ///< Particle mass, kg.
+  alignas(64) float a[3][kLanes];           ///< m v + Q (x_base - x_p): momentum at node 0.
+  alignas(64) float c[3][3][kLanes];        ///< c[e][a] = Q_ea h_a: momentum per node index.
+  alignas(64) float s[3][3][kLanes];        ///< s[e][a] = dt (-V0 tau)_ea: impulse per grad w.
 };
 
 /// Fills `pb` with order[b0, min(b0 + kLanes, end)); `sb` holds their stresses after.
@@ -239,8 +243,8 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
 /// weights, which are looked up per lane from three small tables. The particles' own factors
 /// come from ScatterBatch, kLanes particles at a time.
 template <Kernel K, Transfer T>
-void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t begin,
-                   std::size_t end, Real dt, std::span<const BatchModel> fold, Grid& g) {
+void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t begin, std::size_t end,
+                   Real dt, std::span<const BatchModel> fold, Grid& g) {
   using Traits = KernelTraits<K>;
   constexpr int N = Traits::kNodes, kNodes = N * N * N;
   constexpr int NV = static_cast<int>((kNodes + kLanes - 1) / kLanes);  // vectors per stencil
@@ -419,8 +423,10 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     for (int x = 0; x < 2; ++x)
       for (int y = 0; y < 2; ++y)
         for (int z = 0; z < 2; ++z)
-          slots[x][y][z] = few ? hn::Zero(di) : hn::GatherIndex(
-              di, g.slot.data(), hn::Add(hn::Add(page[0][x], page[1][y]), page[2][z]));
+          slots[x][y][z] =
+              few ? hn::Zero(di)
+                  : hn::GatherIndex(di, g.slot.data(),
+                                    hn::Add(hn::Add(page[0][x], page[1][y]), page[2][z]));
   }
   VF w[3][N], dw[3][N];
   for (int a = 0; a < 3; ++a) {
@@ -449,9 +455,8 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       const VI oij = hn::Add(off[0][i], off[1][j]);
       VI sij[2];  // the slots of this row's two z blocks
       for (int z = 0; z < 2; ++z)
-        sij[z] = hn::IfThenElse(
-            up[1][j], hn::IfThenElse(up[0][i], slots[1][1][z], slots[0][1][z]),
-            hn::IfThenElse(up[0][i], slots[1][0][z], slots[0][0][z]));
+        sij[z] = hn::IfThenElse(up[1][j], hn::IfThenElse(up[0][i], slots[1][1][z], slots[0][1][z]),
+                                hn::IfThenElse(up[0][i], slots[1][0][z], slots[0][0][z]));
       for (int k = 0; k < N; ++k) {
         const VF kw = hn::Mul(hn::Set(d, static_cast<float>(k)), w[2][k]);
         VF v3[3];
@@ -468,8 +473,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
           }
         } else {
           const VI sl = hn::IfThenElse(up[2][k], sij[1], sij[0]);
-          const VI vi =
-              hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl), hn::Add(oij, off[2][k]));
+          const VI vi = hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl), hn::Add(oij, off[2][k]));
           const VF lo = hn::BitCast(
               d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::LowerHalf(dih, vi))));
           const VF hi = hn::BitCast(
@@ -513,9 +517,8 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       const VF ha = hn::Set(d, static_cast<float>(g.h[a]));
       const VF da = hn::Set(d, static_cast<float>(inv_D[a]));
       for (int e = 0; e < 3; ++e)
-        C[e][a] = K == Kernel::linear
-                      ? sg[e][a]
-                      : hn::Mul(hn::MulAdd(sv[e], ca, hn::Mul(sb[e][a], ha)), da);
+        C[e][a] = K == Kernel::linear ? sg[e][a]
+                                      : hn::Mul(hn::MulAdd(sv[e], ca, hn::Mul(sb[e][a], ha)), da);
     }
   }
   // F <- (I + dt G) F with G = grad v (Stomakhin et al. 2013, eq. 7), or G = C for MLS (Hu et
@@ -564,13 +567,20 @@ template <class Fn>
 void dispatch(Transfer t, Kernel k, Fn&& f) {
   dispatch_kernel(k, [&]<Kernel K>() {
     switch (t) {
-      case Transfer::apic: f.template operator()<K, Transfer::apic>(); break;
-      case Transfer::pic: f.template operator()<K, Transfer::pic>(); break;
-      case Transfer::mls:
-        if constexpr (K != Kernel::linear) f.template operator()<K, Transfer::mls>();
-        else throw std::invalid_argument("MLS needs the quadratic or cubic kernel");
+      case Transfer::apic:
+        f.template operator()<K, Transfer::apic>();
         break;
-      case Transfer::flip: throw std::invalid_argument("the SIMD transfers do not handle FLIP");
+      case Transfer::pic:
+        f.template operator()<K, Transfer::pic>();
+        break;
+      case Transfer::mls:
+        if constexpr (K != Kernel::linear)
+          f.template operator()<K, Transfer::mls>();
+        else
+          throw std::invalid_argument("MLS needs the quadratic or cubic kernel");
+        break;
+      case Transfer::flip:
+        throw std::invalid_argument("the SIMD transfers do not handle FLIP");
     }
   });
 }
@@ -586,7 +596,9 @@ void GatherImpl(const Grid& g, Transfer t, Kernel k, Real dt, Particles& p) {
   dispatch(t, k, [&]<Kernel K, Transfer T>() { gather_all<K, T>(g, dt, p); });
 }
 
-const char* TargetImpl() { return hwy::TargetName(HWY_TARGET); }
+const char* TargetImpl() {
+  return hwy::TargetName(HWY_TARGET);
+}
 #endif  // HWY_TARGET == HWY_SCALAR
 
 }  // namespace HWY_NAMESPACE
@@ -601,7 +613,8 @@ HWY_EXPORT(GatherImpl);
 HWY_EXPORT(TargetImpl);
 
 bool supports(Transfer transfer, Kernel, const Grid& grid) {
-  return target_name() != nullptr && transfer != Transfer::flip && grid.mass.size() < (std::size_t{1} << 31);
+  return target_name() != nullptr && transfer != Transfer::flip &&
+         grid.mass.size() < (std::size_t{1} << 31);
 }
 
 void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, Kernel kernel,
