@@ -40,7 +40,7 @@ struct Grid {
   std::vector<Vec3> velocity;      ///< Momentum after transfer, then velocity, m/s.
   std::vector<Vec3> force;         ///< Internal force from stress, N (FLIP only; else empty).
   std::vector<Vec3> velocity_old;  ///< Velocity before forces (FLIP only; else empty).
-  /// Scratch of the SIMD gather: the velocity in float, all x, then all y, then all z.
+  /// Scratch of the SIMD gather: the velocity in float, (x, y) pairs, then all z.
   mutable std::vector<float> velocity_f;
 
   /// A grid for `desc`; `flip` keeps velocity_old and force, which only FLIP uses.

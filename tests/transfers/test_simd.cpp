@@ -1,15 +1,16 @@
 // The float SIMD transfers agree with the scalar double reference to float rounding, and MLS
 // conserves what APIC conserves.
-#include <catch2/catch.hpp>
-
 #include <omp.h>
 
+#include <catch2/catch.hpp>
 #include <cmath>
+#include <numeric>
 #include <random>
 #include <vector>
 
 #include "engine/step/grid.h"
 #include "engine/step/kernels.h"
+#include "engine/step/reorder.h"
 #include "engine/step/simd/stress_simd.h"
 #include "engine/step/simd/transfer_simd.h"
 #include "engine/step/transfer.h"
@@ -55,27 +56,29 @@ GridDesc grid16() {
 /// Per stored node, the sum over particles of the absolute values of every term the scatter
 /// adds (mass: m w; momentum component e: |w a_e|, |w i c0_e|, ..., |grad w S|), computed from
 /// the scalar stencil: the scale the rounding error of a sum is bounded against.
-void absolute_sums(const Particles& p, Transfer tr, Real dt, const Grid& g,
-                   std::vector<double>& am, std::vector<Vec3>& av) {
+template <Kernel K>
+void absolute_sums(const Particles& p, Transfer tr, Real dt, const Grid& g, std::vector<double>& am,
+                   std::vector<Vec3>& av) {
+  constexpr int N = KernelTraits<K>::kNodes;
   am.assign(g.mass.size(), 0);
   av.assign(g.mass.size(), Vec3::Zero());
-  const Vec3 inv_D = KernelTraits<Kernel::quadratic>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
+  const Vec3 inv_D = KernelTraits<K>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
   for (std::size_t q = 0; q < p.size(); ++q) {
-    const auto s = make_stencil<Kernel::quadratic>(p.x[q], g.origin, g.inv_h);
-    std::size_t nodes[27];
-    g.stencil_indices<3>(s.base, nodes);
+    const auto s = make_stencil<K>(p.x[q], g.origin, g.inv_h);
+    std::size_t nodes[N * N * N];
+    g.stencil_indices<N>(s.base, nodes);
     const Real m = p.mass(q);
     Mat3 Q = tr == Transfer::pic ? Mat3::Zero() : Mat3(m * to_real(p.C[q]));
     if (tr == Transfer::mls) Q += dt * to_real(p.stress[q]) * inv_D.asDiagonal();
     const Mat3 S = tr == Transfer::mls ? Mat3::Zero() : Mat3(dt * to_real(p.stress[q]));
     int n = 0;
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j)
-        for (int k = 0; k < 3; ++k, ++n) {
+    for (int i = 0; i < N; ++i)
+      for (int j = 0; j < N; ++j)
+        for (int k = 0; k < N; ++k, ++n) {
           const Real w = s.weight(i, j, k);
           const Vec3 gw = s.gradient(i, j, k).cwiseAbs();
-          const Vec3 off = (g.position(s.base.x() + i, s.base.y() + j, s.base.z() + k) - p.x[q])
-                               .cwiseAbs();
+          const Vec3 off =
+              (g.position(s.base.x() + i, s.base.y() + j, s.base.z() + k) - p.x[q]).cwiseAbs();
           am[nodes[n]] += m * w;
           av[nodes[n]] += w * (m * p.v[q].cwiseAbs() + Q.cwiseAbs() * off) + S.cwiseAbs() * gw;
         }
@@ -92,35 +95,37 @@ TEST_CASE("SIMD and scalar particle-to-grid give the same grid to float rounding
   }
   INFO("SIMD target " << simd::target_name());
   const Real dt = 1e-3;
-  for (Transfer tr : {Transfer::apic, Transfer::pic, Transfer::mls}) {
-    INFO("transfer " << static_cast<int>(tr));
-    const Particles p = cloud(7);
-    Grid a(grid16(), false), b(grid16(), false);
-    ParticleOrder ord;
-    sort_particles(p, Kernel::quadratic, a, ord);
-    sort_particles(p, Kernel::quadratic, b, ord);
-    particles_to_grid(p, ord, tr, Kernel::quadratic, dt, a, TransferPath::scalar);
-    particles_to_grid(p, ord, tr, Kernel::quadratic, dt, b, TransferPath::simd);
-    std::vector<double> am;
-    std::vector<Vec3> av;
-    absolute_sums(p, tr, dt, a, am, av);
-    // Bound: each term is a product of at most 3 float-rounded weights with a float-rounded
-    // factor and up to 7 chained FMAs (at most 12 roundings: 12 u of the term), and a cell's
-    // particles are summed in float (at most n_cell - 1 more roundings of the partial sum,
-    // n_cell <= 40 here with 3000 particles over about 260 cells: 40 u). Double rounding of
-    // the scalar reference is negligible. So |simd - scalar| <= 52 u sum |terms| per node.
-    std::size_t bad = 0;
-    double worst = 0;
-    for (std::size_t n = 0; n < a.mass.size(); ++n) {
-      worst = std::max(worst, std::abs(a.mass[n] - b.mass[n]) / (am[n] + 1e-300));
-      bad += std::abs(a.mass[n] - b.mass[n]) > 52 * kU * am[n];
-      for (int e = 0; e < 3; ++e)
-        bad += std::abs(a.velocity[n][e] - b.velocity[n][e]) > 52 * kU * av[n][e];
+  for (Kernel kernel : {Kernel::linear, Kernel::quadratic, Kernel::cubic})
+    for (Transfer tr : {Transfer::apic, Transfer::pic, Transfer::mls}) {
+      if (tr == Transfer::mls && kernel == Kernel::linear) continue;
+      INFO("kernel " << static_cast<int>(kernel) << " transfer " << static_cast<int>(tr));
+      const Particles p = cloud(7);
+      Grid a(grid16(), false), b(grid16(), false);
+      ParticleOrder ord;
+      sort_particles(p, kernel, a, ord);
+      sort_particles(p, kernel, b, ord);
+      particles_to_grid(p, ord, tr, kernel, dt, a, TransferPath::scalar);
+      particles_to_grid(p, ord, tr, kernel, dt, b, TransferPath::simd);
+      std::vector<double> am;
+      std::vector<Vec3> av;
+      dispatch_kernel(kernel, [&]<Kernel K>() { absolute_sums<K>(p, tr, dt, a, am, av); });
+      // Bound: each term is a product of at most 3 float-rounded weights with a float-rounded
+      // factor and up to 7 chained FMAs (at most 12 roundings: 12 u of the term), and a cell's
+      // particles are summed in float (at most n_cell - 1 more roundings of the partial sum,
+      // n_cell <= 40 here with 3000 particles over about 260 cells: 40 u). Double rounding of
+      // the scalar reference is negligible. So |simd - scalar| <= 52 u sum |terms| per node.
+      std::size_t bad = 0;
+      double worst = 0;
+      for (std::size_t n = 0; n < a.mass.size(); ++n) {
+        worst = std::max(worst, std::abs(a.mass[n] - b.mass[n]) / (am[n] + 1e-300));
+        bad += std::abs(a.mass[n] - b.mass[n]) > 52 * kU * am[n];
+        for (int e = 0; e < 3; ++e)
+          bad += std::abs(a.velocity[n][e] - b.velocity[n][e]) > 52 * kU * av[n][e];
+      }
+      INFO("worst mass error / sum |terms| " << worst / kU << " u");
+      CHECK(bad == 0);
+      CHECK(worst > 0);  // the paths really differ: the SIMD one ran
     }
-    INFO("worst mass error / sum |terms| " << worst / kU << " u");
-    CHECK(bad == 0);
-    CHECK(worst > 0);  // the paths really differ: the SIMD one ran
-  }
 }
 
 TEST_CASE("SIMD and scalar grid-to-particle give the same v, C and F to float rounding",
@@ -130,44 +135,55 @@ TEST_CASE("SIMD and scalar grid-to-particle give the same v, C and F to float ro
     return;
   }
   const Real dt = 1e-3;
-  for (Kernel kernel : {Kernel::linear, Kernel::quadratic, Kernel::cubic})
-  for (Transfer tr : {Transfer::apic, Transfer::pic, Transfer::mls}) {
-    if (tr == Transfer::mls && kernel == Kernel::linear) continue;
-    INFO("kernel " << static_cast<int>(kernel) << " transfer " << static_cast<int>(tr));
-    Particles a = cloud(8);
-    Grid g(grid16(), false);
-    ParticleOrder ord;
-    sort_particles(a, kernel, g, ord);
-    particles_to_grid(a, ord, tr, kernel, dt, g, TransferPath::scalar);
-    grid_update(g);
-    Particles b = a;
-    grid_to_particles(g, tr, kernel, 0, dt, a, TransferPath::scalar);
-    grid_to_particles(g, tr, kernel, 0, dt, b, TransferPath::simd);
-    double vmax = 0;
-    for (const Vec3& v : g.velocity) vmax = std::max(vmax, v.cwiseAbs().maxCoeff());
-    // v = sum_i w_i v_i with weights summing to 1: node velocities rounded to float (u / 2),
-    // weights rounded (u), products of three (2 u), a chain of 2 N + 2 <= 10 FMAs: at most
-    // 16 u of sum w |v_i| <= vmax. C = B D^-1 multiplies by |corner| + N h <= (N + 1) h and
-    // 1/D = 4 / h^2 (linear: C = grad v, |grad w| <= 2 / h per axis, 3 axes): at most
-    // 16 u vmax (N + 1) 4 / h. F = F + dt G F is rounded to float by both paths (1 ulp of
-    // |F| <= 1.6: 2 u |F| apart at most) plus dt 3 |dG| |F|.
-    const double h = g.h.x(), N = kernel_nodes(kernel);
-    const double dv = 16 * kU * vmax, dC = 16 * kU * vmax * (N + 1) * 4 / h;
-    std::size_t bad = 0;
-    double seen = 0;
-    for (std::size_t q = 0; q < a.size(); ++q) {
-      seen = std::max(seen, (a.v[q] - b.v[q]).cwiseAbs().maxCoeff());
-      bad += (a.v[q] - b.v[q]).cwiseAbs().maxCoeff() > dv;
-      if (tr != Transfer::pic)
-        bad += (to_real(a.C[q]) - to_real(b.C[q])).cwiseAbs().maxCoeff() > dC;
-      const double fmax = to_real(a.F[q]).cwiseAbs().maxCoeff();
-      bad += (to_real(a.F[q]) - to_real(b.F[q])).cwiseAbs().maxCoeff() >
-             2 * kU * fmax + dt * 3 * dC * fmax;
-    }
-    INFO("largest velocity difference " << seen << " (bound " << dv << ")");
-    CHECK(bad == 0);
-    CHECK(seen > 0);
-  }
+  // In memory order as sampled (a batch's 16 lanes in as many cells: the lanes gather), and
+  // in cell order as the reorder stage leaves it (about 11 particles per cell here: a batch
+  // spans two or three cells, whose node velocities are loaded once per cell).
+  for (bool cell_order : {false, true})
+    for (Kernel kernel : {Kernel::linear, Kernel::quadratic, Kernel::cubic})
+      for (Transfer tr : {Transfer::apic, Transfer::pic, Transfer::mls}) {
+        if (tr == Transfer::mls && kernel == Kernel::linear) continue;
+        INFO("kernel " << static_cast<int>(kernel) << " transfer " << static_cast<int>(tr)
+                       << " cell order " << cell_order);
+        Particles a = cloud(8);
+        Grid g(grid16(), false);
+        ParticleOrder ord;
+        sort_particles(a, kernel, g, ord);
+        particles_to_grid(a, ord, tr, kernel, dt, g, TransferPath::scalar);
+        grid_update(g);
+        if (cell_order) {
+          a.id.resize(a.size());
+          std::iota(a.id.begin(), a.id.end(), 0u);
+          const ReorderRange all{0, a.size(), {}};
+          reorder_particles({&all, 1}, ord, a);
+        }
+        Particles b = a;
+        grid_to_particles(g, tr, kernel, 0, dt, a, TransferPath::scalar);
+        grid_to_particles(g, tr, kernel, 0, dt, b, TransferPath::simd);
+        double vmax = 0;
+        for (const Vec3& v : g.velocity) vmax = std::max(vmax, v.cwiseAbs().maxCoeff());
+        // v = sum_i w_i v_i with weights summing to 1: node velocities rounded to float (u / 2),
+        // weights rounded (u), products of three (2 u), a chain of 2 N + 2 <= 10 FMAs: at most
+        // 16 u of sum w |v_i| <= vmax. C = B D^-1 multiplies by |corner| + N h <= (N + 1) h and
+        // 1/D = 4 / h^2 (linear: C = grad v, |grad w| <= 2 / h per axis, 3 axes): at most
+        // 16 u vmax (N + 1) 4 / h. F = F + dt G F is rounded to float by both paths (1 ulp of
+        // |F| <= 1.6: 2 u |F| apart at most) plus dt 3 |dG| |F|.
+        const double h = g.h.x(), N = kernel_nodes(kernel);
+        const double dv = 16 * kU * vmax, dC = 16 * kU * vmax * (N + 1) * 4 / h;
+        std::size_t bad = 0;
+        double seen = 0;
+        for (std::size_t q = 0; q < a.size(); ++q) {
+          seen = std::max(seen, (a.v[q] - b.v[q]).cwiseAbs().maxCoeff());
+          bad += (a.v[q] - b.v[q]).cwiseAbs().maxCoeff() > dv;
+          if (tr != Transfer::pic)
+            bad += (to_real(a.C[q]) - to_real(b.C[q])).cwiseAbs().maxCoeff() > dC;
+          const double fmax = to_real(a.F[q]).cwiseAbs().maxCoeff();
+          bad += (to_real(a.F[q]) - to_real(b.F[q])).cwiseAbs().maxCoeff() >
+                 2 * kU * fmax + dt * 3 * dC * fmax;
+        }
+        INFO("largest velocity difference " << seen << " (bound " << dv << ")");
+        CHECK(bad == 0);
+        CHECK(seen > 0);
+      }
 }
 
 TEST_CASE("SIMD transfers give the same results for 1 and 2 threads", "[transfers][simd]") {
@@ -211,41 +227,43 @@ TEST_CASE("MLS keeps mass, momentum and angular momentum through a transfer like
   // momentum, and G2P then P2G keeps the grid's angular momentum. With stress, the folded
   // term m C + dt (-V0 tau) D^-1 adds no net momentum: sum_i w_ip (x_i - x_p) = 0.
   for (Kernel kernel : {Kernel::quadratic, Kernel::cubic})
-  for (TransferPath path : {TransferPath::scalar, TransferPath::simd}) {
-    Particles p = cloud(11);
-    const double tol = path == TransferPath::simd ? 1e-5 : 1e-11;  // float lanes: see above
-    Grid g(grid16(), false);
-    ParticleOrder ord;
-    sort_particles(p, kernel, g, ord);
-    particles_to_grid(p, ord, Transfer::mls, kernel, 1e-3, g, path);
-    double m = 0, gm = 0;
-    Vec3 mom = Vec3::Zero(), gmom = Vec3::Zero(), L0 = Vec3::Zero();
-    for (std::size_t q = 0; q < p.size(); ++q) m += p.mass(q), mom += p.mass(q) * p.v[q];
-    for (std::size_t n = 0; n < g.mass.size(); ++n) gm += g.mass[n], gmom += g.velocity[n];
-    CHECK(gm == Approx(m).epsilon(tol));
-    CHECK((gmom - mom).norm() < tol * mom.norm());
-    for (auto& S : p.stress) S.setZero();
-    particles_to_grid(p, ord, Transfer::mls, kernel, 1e-3, g, path);
-    auto angular = [&] {
-      Vec3 L = Vec3::Zero();
-      for (std::size_t b = 0; b < g.active_blocks(); ++b)
-        for (int n = 0; n < Grid::kBlockNodes; ++n) {
-          const Vec3i o = g.block_first[b];
-          const Vec3 x = g.position(o.x() + (n >> 4), o.y() + ((n >> 2) & 3), o.z() + (n & 3));
-          L += x.cross(g.velocity[b * Grid::kBlockNodes + n]);
-        }
-      return L;
-    };
-    L0 = angular();
-    grid_update(g);
-    grid_to_particles(g, Transfer::mls, kernel, 0, 0, p, path);
-    particles_to_grid(p, ord, Transfer::mls, kernel, 0, g, path);
-    CHECK((angular() - L0).norm() < (tol + 2 * kU) * L0.norm());
-  }
+    for (TransferPath path : {TransferPath::scalar, TransferPath::simd}) {
+      Particles p = cloud(11);
+      const double tol = path == TransferPath::simd ? 1e-5 : 1e-11;  // float lanes: see above
+      Grid g(grid16(), false);
+      ParticleOrder ord;
+      sort_particles(p, kernel, g, ord);
+      particles_to_grid(p, ord, Transfer::mls, kernel, 1e-3, g, path);
+      double m = 0, gm = 0;
+      Vec3 mom = Vec3::Zero(), gmom = Vec3::Zero(), L0 = Vec3::Zero();
+      for (std::size_t q = 0; q < p.size(); ++q) m += p.mass(q), mom += p.mass(q) * p.v[q];
+      for (std::size_t n = 0; n < g.mass.size(); ++n) gm += g.mass[n], gmom += g.velocity[n];
+      CHECK(gm == Approx(m).epsilon(tol));
+      CHECK((gmom - mom).norm() < tol * mom.norm());
+      for (auto& S : p.stress) S.setZero();
+      particles_to_grid(p, ord, Transfer::mls, kernel, 1e-3, g, path);
+      auto angular = [&] {
+        Vec3 L = Vec3::Zero();
+        for (std::size_t b = 0; b < g.active_blocks(); ++b)
+          for (int n = 0; n < Grid::kBlockNodes; ++n) {
+            const Vec3i o = g.block_first[b];
+            const Vec3 x = g.position(o.x() + (n >> 4), o.y() + ((n >> 2) & 3), o.z() + (n & 3));
+            L += x.cross(g.velocity[b * Grid::kBlockNodes + n]);
+          }
+        return L;
+      };
+      L0 = angular();
+      grid_update(g);
+      grid_to_particles(g, Transfer::mls, kernel, 0, 0, p, path);
+      particles_to_grid(p, ord, Transfer::mls, kernel, 0, g, path);
+      CHECK((angular() - L0).norm() < (tol + 2 * kU) * L0.norm());
+    }
 }
 
-TEST_CASE("SIMD particle-to-grid with the corotated stress folded in equals the stress pass then the scatter",
-          "[transfers][simd]") {
+TEST_CASE(
+    "SIMD particle-to-grid with the corotated stress folded in equals the stress pass then the "
+    "scatter",
+    "[transfers][simd]") {
   if (!simd::target_name()) {
     WARN("no SIMD target on this CPU");
     return;

@@ -26,7 +26,9 @@ namespace HWY_NAMESPACE {
 void ScatterImpl(const Particles&, const ParticleOrder&, Transfer, Kernel, Real,
                  std::span<const BatchModel>, Grid&) {}
 void GatherImpl(const Grid&, Transfer, Kernel, Real, Particles&) {}
-const char* TargetImpl() { return nullptr; }
+const char* TargetImpl() {
+  return nullptr;
+}
 #else
 namespace {
 
@@ -34,6 +36,7 @@ namespace hn = hwy::HWY_NAMESPACE;
 using DF = hn::ScalableTag<float>;
 using DI = hn::RebindToSigned<DF>;
 using VF = hn::Vec<DF>;
+using VI = hn::Vec<DI>;
 constexpr std::size_t kLanes = HWY_LANES(float);  ///< Lanes of a full vector on this target.
 
 /// Rounds a grid value to float storage if the grid stores float (grid.precision: float).
@@ -42,9 +45,11 @@ inline Real store_node(Real v, bool float_nodes) {
 }
 
 /// 1D weights and their derivatives (per cell) of kernel K at d = fx - base, one lane per
-/// particle: the vector form of KernelTraits<K>::weights.
-template <Kernel K>
-void lane_weights(DF d, VF x, VF* w, VF* dw) {
+/// particle, in float or double lanes: the vector form of KernelTraits<K>::weights.
+template <Kernel K, class D, class V = hn::Vec<D> >
+void lane_weights(D d, V x, V* w, V* dw) {
+  using VF = V;
+  using T = hn::TFromD<D>;
   const VF one = hn::Set(d, 1.0f), half = hn::Set(d, 0.5f);
   if constexpr (K == Kernel::linear) {
     w[0] = hn::Sub(one, x);
@@ -61,7 +66,8 @@ void lane_weights(DF d, VF x, VF* w, VF* dw) {
     dw[2] = c;
   } else {
     const VF a = hn::Sub(hn::Set(d, 2.0f), x), b = hn::Sub(x, one);  // c = a, e = b
-    const VF sixth = hn::Set(d, 1.0f / 6), two3 = hn::Set(d, 2.0f / 3);
+    const VF sixth = hn::Set(d, static_cast<T>(1.0 / 6)),
+             two3 = hn::Set(d, static_cast<T>(2.0 / 3));
     const VF a2 = hn::Mul(a, a), b2 = hn::Mul(b, b);
     w[0] = hn::Mul(hn::Mul(a2, a), sixth);
     w[1] = hn::Add(hn::Sub(hn::Mul(half, hn::Mul(b2, b)), b2), two3);
@@ -79,8 +85,8 @@ void lane_weights(DF d, VF x, VF* w, VF* dw) {
 /// computed in lanes for the objects whose model `fold` names (the stress folded into the
 /// scatter, so it is never stored), read from p.stress for the others.
 struct StressBatch {
-  std::size_t b0 = 0, b1 = 0;          ///< The batch is order[b0, b1).
-  alignas(64) float tau[9][kLanes];    ///< -V0 tau per lane, column-major.
+  std::size_t b0 = 0, b1 = 0;        ///< The batch is order[b0, b1).
+  alignas(64) float tau[9][kLanes];  ///< -V0 tau per lane, column-major.
 };
 
 /// Fills `sb` with the stresses of order[b0, min(b0 + kLanes, end)).
@@ -107,8 +113,8 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
   if (any) {
     hn::Vec<DF> fv[9], tau[9];
     for (int e = 0; e < 9; ++e) fv[e] = hn::Load(d, in[e]);
-    const auto m = corotated::neg_v0_tau(d, fv, hn::Load(d, mu2), hn::Load(d, lam),
-                                         hn::Load(d, nv0), tau);
+    const auto m =
+        corotated::neg_v0_tau(d, fv, hn::Load(d, mu2), hn::Load(d, lam), hn::Load(d, nv0), tau);
     for (int e = 0; e < 9; ++e) hn::Store(tau[e], d, sb.tau[e]);
     if (!hn::AllFalse(d, m)) {
       alignas(8) std::uint8_t bits[8] = {};
@@ -125,20 +131,120 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
     // give to float accuracy: the scalar double model, as simd::stress does.
     StoredMat3 t;
     if (lane)
-      t = to_stored(-p.object_volume0[o] *
-                    materials::FixedCorotated{fold[o].mu, fold[o].lambda}.kirchhoff(to_real(p.F[pi])));
+      t = to_stored(
+          -p.object_volume0[o] *
+          materials::FixedCorotated{fold[o].mu, fold[o].lambda}.kirchhoff(to_real(p.F[pi])));
     else
       t = p.stress[pi];
     for (int e = 0; e < 9; ++e) sb.tau[e][l] = static_cast<float>(t.data()[e]);
   }
 }
 
+/// What the scatter needs of the particles order[b0, b1) (kLanes of them, clamped to the
+/// range's end), one row or one lane per particle: the 1D weights and their gradients (from
+/// the double stencil, rounded once), the stencil base, and the factors of the node values,
+/// computed in lanes (one particle per lane) from the float-stored C and stress, so the
+/// per-particle loop only loads them.
+template <int N>
+struct ScatterBatch {
+  std::size_t b0 = 0, b1 = 0;               ///< The batch is order[b0, b1).
+  alignas(64) float w[kLanes][3][kLanes];   ///< w[l][axis][k]: 1D weight of node base + k.
+  alignas(64) float dw[kLanes][3][kLanes];  ///< dw[l][axis][k]: its derivative, 1/m.
+  std::int32_t base[kLanes][3];             ///< The stencil's first node per axis.
+  alignas(64) float m[kLanes];              ///< Particle mass, kg.
+  alignas(64) float a[3][kLanes];           ///< m v + Q (x_base - x_p): momentum at node 0.
+  alignas(64) float c[3][3][kLanes];        ///< c[e][a] = Q_ea h_a: momentum per node index.
+  alignas(64) float s[3][3][kLanes];        ///< s[e][a] = dt (-V0 tau)_ea: impulse per grad w.
+};
+
+/// Fills `pb` with order[b0, min(b0 + kLanes, end)); `sb` holds their stresses after.
+template <Kernel K, Transfer T>
+void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
+                const Grid& g, Real dt, std::size_t b0, std::size_t end, StressBatch& sb,
+                ScatterBatch<KernelTraits<K>::kNodes>& pb) {
+  constexpr int N = KernelTraits<K>::kNodes;
+  constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
+  const DF d;
+  fill_stress(p, ord, fold, b0, end, sb);
+  pb.b0 = sb.b0;
+  pb.b1 = sb.b1;
+  const std::size_t count = pb.b1 - pb.b0;
+  alignas(64) float corner[3][kLanes], vel[3][kLanes], cm[3][3][kLanes];
+  alignas(64) float wl[3][N][kLanes], dwl[3][N][kLanes];
+  alignas(64) double xs[3][kLanes];
+  alignas(64) std::int32_t bl[3][kLanes];
+  for (std::size_t l = 0; l < kLanes; ++l) {
+    const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
+    for (int a = 0; a < 3; ++a) {
+      xs[a][l] = p.x[pi][a];
+      vel[a][l] = static_cast<float>(p.v[pi][a]);
+    }
+    pb.m[l] = static_cast<float>(p.mass(pi));
+    if constexpr (kAffine) {
+      const StoredReal* C = p.C[pi].data();  // column-major
+      for (int e = 0; e < 3; ++e)
+        for (int a = 0; a < 3; ++a) cm[e][a][l] = static_cast<float>(C[3 * a + e]);
+    }
+  }
+  // The stencil (base, 1D weights and derivatives) in double lanes, as make_stencil computes
+  // it, each value rounded to float once.
+  const hn::ScalableTag<double> dd;
+  const hn::Rebind<float, decltype(dd)> dh;
+  const hn::Rebind<std::int32_t, decltype(dd)> dih;
+  constexpr double kShift = K == Kernel::quadratic ? 0.5 : 0.0;  // KernelTraits<K>::base
+  constexpr double kFirst = K == Kernel::cubic ? -1.0 : 0.0;
+  for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd))
+    for (int a = 0; a < 3; ++a) {
+      const auto fx = hn::Mul(hn::Sub(hn::Load(dd, xs[a] + h), hn::Set(dd, g.origin[a])),
+                              hn::Set(dd, g.inv_h[a]));
+      const auto b = hn::Add(hn::Floor(hn::Sub(fx, hn::Set(dd, kShift))), hn::Set(dd, kFirst));
+      hn::Vec<decltype(dd)> w[N], dw[N];
+      lane_weights<K>(dd, hn::Sub(fx, b), w, dw);
+      for (int k = 0; k < N; ++k) {
+        hn::Store(hn::DemoteTo(dh, w[k]), dh, wl[a][k] + h);
+        hn::Store(hn::DemoteTo(dh, hn::Mul(dw[k], hn::Set(dd, g.inv_h[a]))), dh, dwl[a][k] + h);
+      }
+      const auto corner_a = hn::Sub(hn::MulAdd(b, hn::Set(dd, g.h[a]), hn::Set(dd, g.origin[a])),
+                                    hn::Load(dd, xs[a] + h));
+      hn::Store(hn::DemoteTo(dh, corner_a), dh, corner[a] + h);
+      hn::Store(hn::DemoteTo(dih, b), dih, bl[a] + h);
+    }
+  for (std::size_t l = 0; l < kLanes; ++l)
+    for (int a = 0; a < 3; ++a) {
+      pb.base[l][a] = bl[a][l];
+      for (int k = 0; k < N; ++k) {
+        pb.w[l][a][k] = wl[a][k][l];
+        pb.dw[l][a][k] = dwl[a][k][l];
+      }
+    }
+  // Momentum at node (i, j, k): m v + Q (x_base + (i, j, k) h - x_p) = a + i c0 + j c1 + k c2,
+  // Q = m C (APIC) or m C + dt (-V0 tau) D^-1 (MLS, Hu et al. 2018, eq. 29).
+  const VF m = hn::Load(d, pb.m);
+  const Vec3 inv_D = KernelTraits<K>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
+  for (int e = 0; e < 3; ++e) {
+    VF a = hn::Mul(m, hn::Load(d, vel[e]));
+    for (int b = 0; b < 3; ++b) {
+      const VF tau = hn::Load(d, sb.tau[3 * b + e]);  // column-major, as stored
+      if constexpr (kAffine) {
+        VF Q = hn::Mul(m, hn::Load(d, cm[e][b]));
+        if constexpr (T == Transfer::mls)
+          Q = hn::MulAdd(hn::Set(d, static_cast<float>(dt * inv_D[b])), tau, Q);
+        a = hn::MulAdd(Q, hn::Load(d, corner[b]), a);
+        hn::Store(hn::Mul(Q, hn::Set(d, static_cast<float>(g.h[b]))), d, pb.c[e][b]);
+      }
+      hn::Store(hn::Mul(hn::Set(d, static_cast<float>(dt)), tau), d, pb.s[e][b]);
+    }
+    hn::Store(a, d, pb.a[e]);
+  }
+}
+
 /// Scatters order[begin, end) (the grid cleared): one lane per stencil node. For each
 /// particle the node values are affine in the node's (i, j, k) and products of the 1D
-/// weights, which are looked up per lane from three small tables.
+/// weights, which are looked up per lane from three small tables. The particles' own factors
+/// come from ScatterBatch, kLanes particles at a time.
 template <Kernel K, Transfer T>
-void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t begin,
-                   std::size_t end, Real dt, std::span<const BatchModel> fold, Grid& g) {
+void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t begin, std::size_t end,
+                   Real dt, std::span<const BatchModel> fold, Grid& g) {
   using Traits = KernelTraits<K>;
   constexpr int N = Traits::kNodes, kNodes = N * N * N;
   constexpr int NV = static_cast<int>((kNodes + kLanes - 1) / kLanes);  // vectors per stencil
@@ -155,10 +261,9 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
     fi[n] = static_cast<float>(ti[n]), fj[n] = static_cast<float>(tj[n]);
     fk[n] = static_cast<float>(tk[n]);
   }
-  const Vec3 inv_D = Traits::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
-  alignas(64) float wt[3][kLanes] = {}, dwt[3][kLanes] = {};
   alignas(64) float out[4][NV * kLanes];
   StressBatch sb;
+  ScatterBatch<N> pb;
   for (std::size_t q = begin; q < end;) {
     const std::uint32_t cell = ord.keys[ord.order[q]];
     VF acc[4][NV];  // mass, momentum x, y, z per node
@@ -166,32 +271,22 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
       for (VF& v : a) v = hn::Zero(d);
     Vec3i base = Vec3i::Zero();
     for (; q < end && ord.keys[ord.order[q]] == cell; ++q) {
-      const std::uint32_t pi = ord.order[q];
-      const auto s = make_stencil<K>(p.x[pi], g.origin, g.inv_h);
-      base = s.base;
-      for (int a = 0; a < 3; ++a)
-        for (int k = 0; k < N; ++k) {
-          wt[a][k] = static_cast<float>(s.w[a][k]);
-          dwt[a][k] = static_cast<float>(s.dw[a][k]);
+      if (q >= pb.b1) fill_batch<K, T>(p, ord, fold, g, dt, q, end, sb, pb);
+      const std::size_t l = q - pb.b0;
+      base = Vec3i(pb.base[l][0], pb.base[l][1], pb.base[l][2]);
+      const VF W0 = hn::Load(d, pb.w[l][0]), W1 = hn::Load(d, pb.w[l][1]),
+               W2 = hn::Load(d, pb.w[l][2]);
+      const VF D0 = hn::Load(d, pb.dw[l][0]), D1 = hn::Load(d, pb.dw[l][1]),
+               D2 = hn::Load(d, pb.dw[l][2]);
+      const VF mv = hn::Set(d, pb.m[l]);
+      VF av[3], c[3][3], S[3][3];
+      for (int e = 0; e < 3; ++e) {
+        av[e] = hn::Set(d, pb.a[e][l]);
+        for (int b = 0; b < 3; ++b) {
+          if constexpr (kAffine) c[e][b] = hn::Set(d, pb.c[e][b][l]);
+          if constexpr (kStress) S[e][b] = hn::Set(d, pb.s[e][b][l]);
         }
-      // Momentum at node (i, j, k): m v + Q (corner + (i, j, k) h - x) = a + i c0 + j c1 + k c2,
-      // Q = m C (APIC) or m C + dt (-V0 tau) D^-1 (MLS, Hu et al. 2018, eq. 29).
-      if (q >= sb.b1) fill_stress(p, ord, fold, q, end, sb);
-      Mat3 stress;  // -V0 tau, as float (as stored by the stress stage)
-      for (int e = 0; e < 9; ++e) stress.data()[e] = sb.tau[e][q - sb.b0];
-      const Real m = p.mass(pi);
-      Vec3 av = m * p.v[pi];
-      Mat3 c = Mat3::Zero();
-      if constexpr (kAffine) {
-        Mat3 Q = m * to_real(p.C[pi]);
-        if constexpr (T == Transfer::mls) Q += dt * stress * inv_D.asDiagonal();
-        av += Q * (g.position(base.x(), base.y(), base.z()) - p.x[pi]);
-        c = Q * g.h.asDiagonal();
       }
-      const Mat3 S = dt * stress;  // impulse dt f = dt (-V0 tau) grad w
-      const VF W0 = hn::Load(d, wt[0]), W1 = hn::Load(d, wt[1]), W2 = hn::Load(d, wt[2]);
-      const VF D0 = hn::Load(d, dwt[0]), D1 = hn::Load(d, dwt[1]), D2 = hn::Load(d, dwt[2]);
-      const VF mv = hn::Set(d, static_cast<float>(m));
       for (int v = 0; v < NV; ++v) {
         const auto Ii = hn::SetTableIndices(d, ti + v * kLanes);
         const auto Ij = hn::SetTableIndices(d, tj + v * kLanes);
@@ -209,17 +304,17 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
         const VF I = hn::Load(d, fi + v * kLanes), J = hn::Load(d, fj + v * kLanes),
                  Kk = hn::Load(d, fk + v * kLanes);
         for (int e = 0; e < 3; ++e) {
-          VF t = hn::Set(d, static_cast<float>(av[e]));
+          VF t = av[e];
           if constexpr (kAffine) {
-            t = hn::MulAdd(I, hn::Set(d, static_cast<float>(c(e, 0))), t);
-            t = hn::MulAdd(J, hn::Set(d, static_cast<float>(c(e, 1))), t);
-            t = hn::MulAdd(Kk, hn::Set(d, static_cast<float>(c(e, 2))), t);
+            t = hn::MulAdd(I, c[e][0], t);
+            t = hn::MulAdd(J, c[e][1], t);
+            t = hn::MulAdd(Kk, c[e][2], t);
           }
           VF sum = hn::MulAdd(w, t, acc[1 + e][v]);
           if constexpr (kStress) {
-            sum = hn::MulAdd(gx, hn::Set(d, static_cast<float>(S(e, 0))), sum);
-            sum = hn::MulAdd(gy, hn::Set(d, static_cast<float>(S(e, 1))), sum);
-            sum = hn::MulAdd(gz, hn::Set(d, static_cast<float>(S(e, 2))), sum);
+            sum = hn::MulAdd(gx, S[e][0], sum);
+            sum = hn::MulAdd(gy, S[e][1], sum);
+            sum = hn::MulAdd(gz, S[e][2], sum);
           }
           acc[1 + e][v] = sum;
         }
@@ -255,27 +350,83 @@ void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt,
 template <Kernel K, Transfer T>
 void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Particles& p) {
   using Traits = KernelTraits<K>;
-  constexpr int N = Traits::kNodes, kNodes = N * N * N;
+  constexpr int N = Traits::kNodes;
   constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
   constexpr bool kGrad = T != Transfer::mls;  // MLS updates F with C, not with grad w
   const DF d;
   const DI di;
   alignas(64) float dist[3][kLanes], corner[3][kLanes], Fin[9][kLanes];
-  alignas(64) std::int32_t idx[kNodes][kLanes];
+  alignas(64) std::int32_t base[3][kLanes];
   for (std::size_t l = 0; l < kLanes; ++l) {
     const std::size_t q = q0 + std::min(l, count - 1);
-    Vec3i base;
     for (int a = 0; a < 3; ++a) {
       const Real fx = (p.x[q][a] - g.origin[a]) * g.inv_h[a];
-      base[a] = Traits::base(fx);
-      dist[a][l] = static_cast<float>(fx - base[a]);
-      corner[a][l] = static_cast<float>(g.origin[a] + base[a] * g.h[a] - p.x[q][a]);
+      base[a][l] = Traits::base(fx);
+      dist[a][l] = static_cast<float>(fx - base[a][l]);
+      corner[a][l] = static_cast<float>(g.origin[a] + base[a][l] * g.h[a] - p.x[q][a]);
     }
-    std::size_t nodes[kNodes];
-    g.stencil_indices<N>(base, nodes);
-    for (int n = 0; n < kNodes; ++n) idx[n][l] = static_cast<std::int32_t>(nodes[n]);
     const StoredReal* F = p.F[q].data();
     for (int e = 0; e < 9; ++e) Fin[e][l] = static_cast<float>(F[e]);
+  }
+  // Runs of lanes with the same stencil cell (the reorder stage keeps a cell's particles
+  // together): with at most kMaxRuns runs in the batch, each run's node velocities are loaded
+  // once and spread to its lanes by blends, instead of gathered lane by lane. The values are
+  // the same either way.
+  constexpr int kMaxRuns = 3;
+  alignas(64) std::int32_t run_of[kLanes];
+  std::size_t run_first[kMaxRuns] = {};
+  int runs = 1;
+  run_of[0] = 0;
+  for (std::size_t l = 1; l < kLanes; ++l) {
+    if (base[0][l] != base[0][l - 1] || base[1][l] != base[1][l - 1] ||
+        base[2][l] != base[2][l - 1]) {
+      if (runs < kMaxRuns) run_first[runs] = l;
+      ++runs;
+    }
+    run_of[l] = runs - 1;
+  }
+  const bool few = runs <= kMaxRuns;
+  std::size_t run_nodes[kMaxRuns][N * N * N];
+  hn::Mask<DF> in_run[kMaxRuns];
+  if (few)
+    for (int r = 0; r < runs; ++r) {
+      const std::size_t l = run_first[r];
+      g.stencil_indices<N>(Vec3i(base[0][l], base[1][l], base[2][l]), run_nodes[r]);
+      in_run[r] = hn::RebindMask(d, hn::Eq(hn::Load(di, run_of), hn::Set(di, r)));
+    }
+  // Storage index of node base + (i, j, k), per lane, as Grid::stencil_indices computes it:
+  // the slot of the node's block times 64, plus the node's offset in the block. A stencil
+  // spans at most two blocks per axis (block b0 or b0 + 1: `up`), so the slots of the eight
+  // blocks are gathered from the page table once per batch and chosen per node by blends.
+  // A block the lane's stencil does not reach is clamped into the domain and never chosen.
+  VI off[3][N], slots[2][2][2];
+  hn::Mask<DI> up[3][N];
+  {
+    const std::int32_t stride[3] = {g.blocks.y() * g.blocks.z(), g.blocks.z(), 1};
+    const VI mask = hn::Set(di, Grid::kBlockEdge - 1);
+    VI page[3][2];
+    for (int a = 0; a < 3; ++a) {
+      const VI b = hn::Load(di, base[a]);
+      const VI b0 = hn::ShiftRight<Grid::kBlockBits>(b);
+      const VI last = hn::Set(di, g.blocks[a] - 1);
+      for (int h = 0; h < 2; ++h)
+        page[a][h] = hn::Mul(hn::Min(hn::Add(b0, hn::Set(di, h)), last), hn::Set(di, stride[a]));
+      for (int t = 0; t < N; ++t) {
+        const VI s = hn::Add(hn::And(b, mask), hn::Set(di, t));  // offset from block b0
+        up[a][t] = hn::Gt(s, mask);
+        const VI o = hn::And(s, mask);
+        off[a][t] = a == 0   ? hn::ShiftLeft<2 * Grid::kBlockBits>(o)
+                    : a == 1 ? hn::ShiftLeft<Grid::kBlockBits>(o)
+                             : o;
+      }
+    }
+    for (int x = 0; x < 2; ++x)
+      for (int y = 0; y < 2; ++y)
+        for (int z = 0; z < 2; ++z)
+          slots[x][y][z] =
+              few ? hn::Zero(di)
+                  : hn::GatherIndex(di, g.slot.data(),
+                                    hn::Add(hn::Add(page[0][x], page[1][y]), page[2][z]));
   }
   VF w[3][N], dw[3][N];
   for (int a = 0; a < 3; ++a) {
@@ -283,8 +434,13 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     const VF s = hn::Set(d, static_cast<float>(g.inv_h[a]));
     for (int k = 0; k < N; ++k) dw[a][k] = hn::Mul(dw[a][k], s);
   }
-  const float* vel[3] = {g.velocity_f.data(), g.velocity_f.data() + g.mass.size(),
-                         g.velocity_f.data() + 2 * g.mass.size()};
+  // Node velocities: (x, y) pairs gathered as one 64-bit value per lane (half the gathers'
+  // elements of two 32-bit gathers), then split into x and y lanes; z on its own.
+  const std::uint64_t* vel_xy = reinterpret_cast<const std::uint64_t*>(g.velocity_f.data());
+  const float* vel_z = g.velocity_f.data() + 2 * g.mass.size();
+  const hn::Repartition<std::uint64_t, DF> du64;
+  const hn::Repartition<std::int64_t, DF> di64;
+  const hn::Half<DI> dih;
   // Each (i, j) row of the stencil summed over k first (r0: w2, r1: dw2, r2: k w2), then the
   // rows: v, grad v (column a: d/dx_a) and the index moments sum w v (i, j, k) for B.
   VF sv[3], sg[3][3], sb[3][3];
@@ -292,16 +448,42 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     sv[e] = hn::Zero(d);
     for (int a = 0; a < 3; ++a) sg[e][a] = sb[e][a] = hn::Zero(d);
   }
-  int n = 0;
   for (int i = 0; i < N; ++i)
     for (int j = 0; j < N; ++j) {
       VF r0[3], r1[3], r2[3];
       for (int e = 0; e < 3; ++e) r0[e] = r1[e] = r2[e] = hn::Zero(d);
-      for (int k = 0; k < N; ++k, ++n) {
-        const auto vi = hn::Load(di, idx[n]);
+      const VI oij = hn::Add(off[0][i], off[1][j]);
+      VI sij[2];  // the slots of this row's two z blocks
+      for (int z = 0; z < 2; ++z)
+        sij[z] = hn::IfThenElse(up[1][j], hn::IfThenElse(up[0][i], slots[1][1][z], slots[0][1][z]),
+                                hn::IfThenElse(up[0][i], slots[1][0][z], slots[0][0][z]));
+      for (int k = 0; k < N; ++k) {
         const VF kw = hn::Mul(hn::Set(d, static_cast<float>(k)), w[2][k]);
+        VF v3[3];
+        if (few) {
+          const int n = (i * N + j) * N + k;
+          const float* vf = g.velocity_f.data();
+          for (int e = 0; e < 3; ++e) {
+            auto node = [&](int r) {
+              const std::size_t x = run_nodes[r][n];
+              return hn::Set(d, e < 2 ? vf[2 * x + e] : vel_z[x]);
+            };
+            v3[e] = node(0);
+            for (int r = 1; r < runs; ++r) v3[e] = hn::IfThenElse(in_run[r], node(r), v3[e]);
+          }
+        } else {
+          const VI sl = hn::IfThenElse(up[2][k], sij[1], sij[0]);
+          const VI vi = hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl), hn::Add(oij, off[2][k]));
+          const VF lo = hn::BitCast(
+              d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::LowerHalf(dih, vi))));
+          const VF hi = hn::BitCast(
+              d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::UpperHalf(dih, vi))));
+          v3[0] = hn::ConcatEven(d, hi, lo);
+          v3[1] = hn::ConcatOdd(d, hi, lo);
+          v3[2] = hn::GatherIndex(d, vel_z, vi);
+        }
         for (int e = 0; e < 3; ++e) {
-          const VF ve = hn::GatherIndex(d, vel[e], vi);
+          const VF ve = v3[e];
           r0[e] = hn::MulAdd(w[2][k], ve, r0[e]);
           if constexpr (kGrad) r1[e] = hn::MulAdd(dw[2][k], ve, r1[e]);
           if constexpr (kAffine) r2[e] = hn::MulAdd(kw, ve, r2[e]);
@@ -335,9 +517,8 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       const VF ha = hn::Set(d, static_cast<float>(g.h[a]));
       const VF da = hn::Set(d, static_cast<float>(inv_D[a]));
       for (int e = 0; e < 3; ++e)
-        C[e][a] = K == Kernel::linear
-                      ? sg[e][a]
-                      : hn::Mul(hn::MulAdd(sv[e], ca, hn::Mul(sb[e][a], ha)), da);
+        C[e][a] = K == Kernel::linear ? sg[e][a]
+                                      : hn::Mul(hn::MulAdd(sv[e], ca, hn::Mul(sb[e][a], ha)), da);
     }
   }
   // F <- (I + dt G) F with G = grad v (Stomakhin et al. 2013, eq. 7), or G = C for MLS (Hu et
@@ -386,13 +567,20 @@ template <class Fn>
 void dispatch(Transfer t, Kernel k, Fn&& f) {
   dispatch_kernel(k, [&]<Kernel K>() {
     switch (t) {
-      case Transfer::apic: f.template operator()<K, Transfer::apic>(); break;
-      case Transfer::pic: f.template operator()<K, Transfer::pic>(); break;
-      case Transfer::mls:
-        if constexpr (K != Kernel::linear) f.template operator()<K, Transfer::mls>();
-        else throw std::invalid_argument("MLS needs the quadratic or cubic kernel");
+      case Transfer::apic:
+        f.template operator()<K, Transfer::apic>();
         break;
-      case Transfer::flip: throw std::invalid_argument("the SIMD transfers do not handle FLIP");
+      case Transfer::pic:
+        f.template operator()<K, Transfer::pic>();
+        break;
+      case Transfer::mls:
+        if constexpr (K != Kernel::linear)
+          f.template operator()<K, Transfer::mls>();
+        else
+          throw std::invalid_argument("MLS needs the quadratic or cubic kernel");
+        break;
+      case Transfer::flip:
+        throw std::invalid_argument("the SIMD transfers do not handle FLIP");
     }
   });
 }
@@ -408,7 +596,9 @@ void GatherImpl(const Grid& g, Transfer t, Kernel k, Real dt, Particles& p) {
   dispatch(t, k, [&]<Kernel K, Transfer T>() { gather_all<K, T>(g, dt, p); });
 }
 
-const char* TargetImpl() { return hwy::TargetName(HWY_TARGET); }
+const char* TargetImpl() {
+  return hwy::TargetName(HWY_TARGET);
+}
 #endif  // HWY_TARGET == HWY_SCALAR
 
 }  // namespace HWY_NAMESPACE
@@ -423,7 +613,8 @@ HWY_EXPORT(GatherImpl);
 HWY_EXPORT(TargetImpl);
 
 bool supports(Transfer transfer, Kernel, const Grid& grid) {
-  return target_name() != nullptr && transfer != Transfer::flip && grid.mass.size() < (std::size_t{1} << 31);
+  return target_name() != nullptr && transfer != Transfer::flip &&
+         grid.mass.size() < (std::size_t{1} << 31);
 }
 
 void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, Kernel kernel,
@@ -432,14 +623,16 @@ void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, 
 }
 
 void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p) {
-  // Node velocities in float, one array per axis, for the lane gathers.
+  // Node velocities in float for the lane gathers: (x, y) pairs, then all z.
   const std::size_t nodes = grid.mass.size();
   grid.velocity_f.resize(3 * nodes);
   const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(nodes);
 #pragma omp parallel for schedule(static) if (count >= kParallelMinItems)
-  for (std::ptrdiff_t i = 0; i < count; ++i)
-    for (int a = 0; a < 3; ++a)
-      grid.velocity_f[a * nodes + i] = static_cast<float>(grid.velocity[i][a]);
+  for (std::ptrdiff_t i = 0; i < count; ++i) {
+    grid.velocity_f[2 * i] = static_cast<float>(grid.velocity[i].x());
+    grid.velocity_f[2 * i + 1] = static_cast<float>(grid.velocity[i].y());
+    grid.velocity_f[2 * nodes + i] = static_cast<float>(grid.velocity[i].z());
+  }
   HWY_DYNAMIC_DISPATCH(GatherImpl)(grid, transfer, kernel, dt, p);
 }
 
