@@ -96,6 +96,15 @@ class MaterialGroup {
   /// none (the default) if not, or if the group does more than the model (e.g. plasticity's
   /// rescaled moduli).
   virtual BatchModel batch_model() const { return {}; }
+
+  /// The plasticity stage's call, given the substep `dt` (s) whose F update F holds; a group
+  /// whose projection needs the rate of deformation (water's viscosity) overrides this one.
+  /// The default calls apply_plasticity(F).
+  virtual void apply_plasticity_step(std::span<StoredMat3> F, Real dt) { apply_plasticity(F); }
+
+  /// Largest kinematic viscosity eta / rho (m^2/s) over the range, for the explicit viscous
+  /// bound on dt; 0 (the default) for a material without viscosity.
+  virtual Real max_kinematic_viscosity(std::span<const StoredMat3> F) const { return 0; }
 };
 
 /// A registered material: its name, parameter table and factory.

@@ -102,19 +102,17 @@ MaterialInfo sand_info() {
 MaterialInfo water_info() {
   ParamSpec K{"bulk_modulus", "Pa", "K: p = K / gamma (J^-gamma - 1)", true, 1e5, 0, 1e300, true};
   ParamSpec gamma{"gamma", "", "Tait exponent", false, 7, 1, 20, true};
-  ParamSpec eta{"viscosity", "Pa s", "dynamic viscosity (only 0 for now)", false, 0, 0, 1e300};
+  ParamSpec eta{"viscosity", "Pa s", "dynamic viscosity eta: tau += J 2 eta dev(sym(grad v))",
+                false, 0, 0, 1e300};
   return {"water",
-          "weakly compressible Tait fluid; only J is kept (F = J^(1/3) I)",
+          "weakly compressible Tait fluid, optionally viscous; only J is kept (F = J^(1/3) I)",
           "Tampubolon et al. 2017, Multi-species simulation of porous sand and water mixtures",
           {K, gamma, eta},
           true,
           [](const ParamValues& v, const GroupInfo& g) {
-            if (v.at("viscosity") != 0)
-              throw std::invalid_argument(
-                  "viscosity > 0 is not supported yet (materials do not see the velocity "
-                  "gradient); use viscosity: 0");
             return std::make_unique<materials::WaterGroup>(
-                materials::TaitWater{v.at("bulk_modulus"), v.at("gamma")}, g.density);
+                materials::TaitWater{v.at("bulk_modulus"), v.at("gamma")}, g.density,
+                v.at("viscosity"), g.count);
           }};
 }
 

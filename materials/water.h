@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <vector>
 
 #include "materials/elastic_group.h"
 #include "materials/material.h"
@@ -63,34 +64,81 @@ struct TaitWater {
   static Mat3 project(const Mat3& F) { return std::cbrt(F.determinant()) * Mat3::Identity(); }
 };
 
-/// MaterialGroup for water. It has no state beyond F; its plasticity stage only projects F.
+/// The rate of deformation of a water particle from its F update: the plasticity stage sees
+/// F_new = (I + dt grad v) F_old with F_old = J_old^(1/3) I, so
+/// A = F_new / det(F_new)^(1/3) = (I + dt grad v) / det(I + dt grad v)^(1/3) and
+/// dev(sym(A)) / dt = dev(sym(grad v)) + O(dt), the deviatoric strain rate (1/s). It holds for
+/// every transfer (PIC, FLIP, APIC, MLS), since each updates F with its own grad v.
+inline Mat3 deviatoric_rate(const Mat3& F_new, Real dt) {
+  const Real J = F_new.determinant();
+  if (!(J > 0) || !(dt > 0)) return Mat3::Zero();
+  const Mat3 A = F_new / std::cbrt(J);
+  const Mat3 D = (Real(0.5) * (A + A.transpose()) - Mat3::Identity()) / dt;
+  return D - D.trace() / 3 * Mat3::Identity();
+}
+
+/// MaterialGroup for water. With viscosity it keeps each particle's deviatoric strain rate
+/// (6 values, particle-major) as its state; without, it has no state beyond F.
 class WaterGroup final : public MaterialGroup {
  public:
-  /// Particles of `model` with reference density `rho0`.
-  WaterGroup(const TaitWater& model, Real rho0) : model_(model), rho0_(rho0) {}
+  /// `count` particles of `model` with reference density `rho0` and dynamic viscosity
+  /// `viscosity` (eta, Pa s; 0 for none).
+  WaterGroup(const TaitWater& model, Real rho0, Real viscosity = 0, std::size_t count = 0)
+      : model_(model), rho0_(rho0), eta_(viscosity), rate_(viscosity > 0 ? 6 * count : 0) {}
 
+  /// Kirchhoff stress tau = -p J I + J 2 eta D, with D the deviatoric strain rate of the last
+  /// F update (Newtonian viscosity, references.md "Sand and water"; explicit, as is the rest).
   void compute_stress(std::span<const StoredMat3> F, Real volume0,
                       std::span<StoredMat3> out) const override {
-    model_stress(model_, F, volume0, out);
+    if (rate_.empty()) return model_stress(model_, F, volume0, out);
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+    for (std::ptrdiff_t p = 0; p < n; ++p) {
+      const Mat3 Fp = to_real(F[p]);
+      const Mat3 tau = model_.kirchhoff(Fp) + 2 * eta_ * Fp.determinant() * rate(p);
+      out[p] = to_stored(-volume0 * tau);
+    }
   }
 
   bool has_plasticity() const override {
     return true;
   }
 
-  void apply_plasticity(std::span<StoredMat3> F) override {
+  void apply_plasticity(std::span<StoredMat3> F) override { apply_plasticity_step(F, 0); }
+
+  /// Keeps the deviatoric strain rate of this F update (viscosity only), then F = J^(1/3) I.
+  void apply_plasticity_step(std::span<StoredMat3> F, Real dt) override {
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
 #pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p) F[p] = to_stored(TaitWater::project(to_real(F[p])));
+    for (std::ptrdiff_t p = 0; p < n; ++p) {
+      const Mat3 Fp = to_real(F[p]);
+      if (!rate_.empty()) {
+        const Mat3 D = deviatoric_rate(Fp, dt);
+        Real* r = &rate_[6 * p];
+        r[0] = D(0, 0), r[1] = D(1, 1), r[2] = D(2, 2), r[3] = D(0, 1), r[4] = D(0, 2),
+        r[5] = D(1, 2);
+      }
+      F[p] = to_stored(TaitWater::project(Fp));
+    }
   }
 
   Real max_wave_speed(std::span<const StoredMat3> F) const override {
     return model_max_wave_speed(model_, F, rho0_);
   }
 
+  /// eta / rho at the current density rho0 / J, m^2/s.
+  Real max_kinematic_viscosity(std::span<const StoredMat3> F) const override {
+    if (eta_ <= 0) return 0;
+    Real J = 0;
+    for (const StoredMat3& f : F) J = std::max(J, Real(to_real(f).determinant()));
+    return eta_ * J / rho0_;
+  }
+
   Real elastic_energy(std::span<const StoredMat3> F, Real volume0) const override {
     return model_elastic_energy(model_, F, volume0);
   }
+
+  std::span<Real> state() override { return rate_; }
 
   /// The model.
   const TaitWater& model() const {
@@ -98,8 +146,17 @@ class WaterGroup final : public MaterialGroup {
   }
 
  private:
+  Mat3 rate(std::ptrdiff_t p) const {
+    const Real* r = &rate_[6 * p];
+    Mat3 D;
+    D << r[0], r[3], r[4], r[3], r[1], r[5], r[4], r[5], r[2];
+    return D;
+  }
+
   TaitWater model_;
   Real rho0_;
+  Real eta_;
+  std::vector<Real> rate_;
 };
 
 }  // namespace mpm::materials

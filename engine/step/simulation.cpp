@@ -264,9 +264,10 @@ void Simulation::build_stages() {
   const bool plastic = std::any_of(materials_.begin(), materials_.end(),
                                    [](const auto& m) { return m.material->has_plasticity(); });
   if (plastic)
-    add("plasticity", [this](Real) {
+    add("plasticity", [this](Real dt) {
       for (auto& m : materials_)
-        if (m.material->has_plasticity()) m.material->apply_plasticity(slice(particles_.F, m));
+        if (m.material->has_plasticity())
+          m.material->apply_plasticity_step(slice(particles_.F, m), dt);
     });
   add("advect", [this](Real dt) {
     last_advect_ = advect_particles(dt, grid_, particles_);
@@ -307,13 +308,22 @@ void Simulation::replace_particles(Particles&& p, const std::vector<std::size_t>
 }
 
 Real Simulation::cfl_bound(Real cfl) const {
-  Real c = 0;
-  for (const auto& m : materials_)
-    if (m.count > 0) c = std::max(c, m.material->max_wave_speed(slice(particles_.F, m)));
-  if (domain_) return cfl * grid_.h.minCoeff() /
-                      (parallel::max_all(c) + parallel::max_all(max_speed()));
-  // dt <= C h / (c + |v|max) (references.md, "Time step").
-  return cfl * grid_.h.minCoeff() / (c + max_speed());
+  Real c = 0, nu = 0;
+  for (const auto& m : materials_) {
+    if (m.count == 0) continue;
+    c = std::max(c, m.material->max_wave_speed(slice(particles_.F, m)));
+    nu = std::max(nu, m.material->max_kinematic_viscosity(slice(particles_.F, m)));
+  }
+  Real speed = max_speed();
+  if (domain_) {
+    c = parallel::max_all(c);
+    nu = parallel::max_all(nu);
+    speed = parallel::max_all(speed);
+  }
+  // dt <= C h / (c + |v|max) (references.md, "Time step"); with viscosity also the explicit
+  // diffusion bound dt <= h^2 / (6 nu) (docs/materials.md, "Water").
+  const Real h = grid_.h.minCoeff(), bound = cfl * h / (c + speed);
+  return nu > 0 ? std::min(bound, h * h / (6 * nu)) : bound;
 }
 
 Real Simulation::stable_dt() const {

@@ -159,10 +159,37 @@ TEST_CASE("sand and water: the factories reject what they cannot do", "[material
   v["volume_correction"] = 0.5;
   CHECK_THROWS_WITH(info("sand").create(v, GroupInfo{1600, 1}),
                     Catch::Contains("volume_correction must be 0 (off) or 1 (on)"));
-  ParamValues w = checks::params_of(info("water"));
-  w["viscosity"] = 1e-3;
-  CHECK_THROWS_WITH(info("water").create(w, GroupInfo{1000, 1}),
-                    Catch::Contains("viscosity > 0 is not supported"));
+}
+
+TEST_CASE("water: viscosity adds J 2 eta dev(sym(grad v)) from the F update", "[materials][water]") {
+  // F_old = s I, F_new = (I + dt L) F_old: the group reads the rate of deformation back.
+  const TaitWater m{2e5, 7};
+  const double eta = 3, rho0 = 1000, dt = 1e-4, V0 = 2e-6, s = std::cbrt(0.99);
+  std::mt19937 rng(21);
+  Mat3 L;
+  for (int i = 0; i < 9; ++i) L(i / 3, i % 3) = std::uniform_real_distribution<double>(-2, 2)(rng);
+  materials::WaterGroup g(m, rho0, eta, 1);
+  REQUIRE(g.state().size() == 6);
+  std::vector<StoredMat3> F{to_stored(s * (Mat3::Identity() + dt * L))};
+  const double J_new = to_real(F[0]).determinant();
+  g.apply_plasticity_step(F, dt);
+  const Mat3 Fp = to_real(F[0]);
+  CHECK((Fp - Fp(0, 0) * Mat3::Identity()).norm() == 0);  // still F = J^(1/3) I
+  const Mat3 D = 0.5 * (L + L.transpose()) - L.trace() / 3 * Mat3::Identity();
+  std::vector<StoredMat3> out(1);
+  g.compute_stress(F, V0, out);
+  const double J = Fp.determinant();
+  const Mat3 expected = -V0 * (-m.pressure(J) * J * Mat3::Identity() + 2 * eta * J * D);
+  // The rate is exact to O(dt |L|^2) and to the storage rounding of F over dt.
+  const double tol = 2 * eta * V0 * (dt * L.squaredNorm() + 8 * test::kStoredEps / dt);
+  CHECK((to_real(out[0]) - expected).norm() <= tol + 1e-6 * expected.norm());
+  CHECK(J == Approx(J_new).epsilon(1e-6));
+  // eta / rho at the current density.
+  CHECK(g.max_kinematic_viscosity(F) == Approx(eta * J / rho0));
+  // Without viscosity: no state, no viscous bound.
+  materials::WaterGroup plain(m, rho0);
+  CHECK(plain.state().empty());
+  CHECK(plain.max_kinematic_viscosity(F) == 0);
 }
 
 TEST_CASE("water: stress is a pressure set by J alone", "[materials][water]") {
