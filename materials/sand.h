@@ -37,7 +37,11 @@ struct DruckerPragerSand {
   /// particle is that of its mirror image; the return mapping then un-inverts it).
   static constexpr Real kSigmaMin = 1e-4;
 
-  /// Slope alpha of the cone for friction angle `phi` (radians).
+  /// Slope alpha of the cone for friction angle `phi` (radians). phi is the angle of
+  /// Mohr-Coulomb's triaxial-compression meridian (Klar et al. 2016, sec. 7.3): in plane-strain
+  /// shear flow (a quasi-2D slot) the cone flows at tau / sigma_n = 3 alpha / sqrt(2) =
+  /// 2 sqrt(3) sin(phi) / (3 - sin(phi)), so phi = 30 degrees flows at tan 34.7 degrees
+  /// (docs/validation.md, section 12).
   static Real cone_alpha(Real phi) {
     const Real s = std::sin(phi);
     return std::sqrt(Real(2) / 3) * 2 * s / (3 - s);
