@@ -74,10 +74,6 @@ Real apply_walls(const std::vector<WallPlane>& planes, Real time, Grid& g) {
   }
   // Work per block, summed in order afterwards so the total is the same for any thread count.
   std::vector<Real> work(g.active_blocks(), 0);
-  // A node on the plane is behind it. Node positions carry round-off (origin + i h), so "on"
-  // means within a millionth of a cell: a wall placed on a node row then holds on both sides
-  // alike, whichever way the rounding of that row fell.
-  const Real on_plane = 1e-6 * g.h.minCoeff();
   for_each_active_node(g, [&](int i, int j, int k, std::size_t idx) {
     if (g.mass[idx] <= 0) return;
     const Vec3 x = g.position(i, j, k);
@@ -86,7 +82,7 @@ Real apply_walls(const std::vector<WallPlane>& planes, Real time, Grid& g) {
     for (std::size_t w = 0; w < planes.size(); ++w) {
       const WallPlane& p = planes[w];
       const Vec3& vw = placed[w].velocity;
-      if ((x - placed[w].point).dot(p.normal) > on_plane) continue;
+      if ((x - placed[w].point).dot(p.normal) > 0) continue;
       const Vec3 after = vw + wall_velocity(v - vw, p.normal, p.boundary, p.friction);
       // The wall's impulse on the node times the wall's velocity: zero for a wall at rest.
       if (moving) node_work += g.mass[idx] * (after - v).dot(vw);
