@@ -1,6 +1,7 @@
 // MPI domain decomposition (engine/parallel/): the slab rule, and `mpirun -np 2 mpm run`
 // against one rank: frames equal to round-off, repeated runs bit-identical, bad input exits 2
-// on every rank without a hang, and a checkpoint resumed on another number of ranks.
+// on every rank without a hang, a checkpoint resumed on another number of ranks (both ways),
+// and a rank failing mid-substep stopping every rank with the cause in report.yaml.
 #include <sys/wait.h>
 
 #include <catch2/catch.hpp>
