@@ -17,7 +17,7 @@ def row(n, r):
     layers = int(edge / 4)
     compute = c * n / r
     halo = 2 * alpha + node_bytes * 4 * edge**2 / beta
-    reductions = 6 * alpha * math.log2(r)
+    reductions = 9 * alpha * math.log2(r)
     gather = 2 * n * record_bytes / (beta * s)
     t = compute + halo + reductions + gather
     note = "" if r <= layers else " (refused today: more ranks than layers)"

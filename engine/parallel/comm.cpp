@@ -4,6 +4,8 @@
 
 #include <chrono>
 #include <cstdlib>
+#include <stdexcept>
+#include <utility>
 
 namespace mpm::parallel {
 
@@ -122,6 +124,20 @@ void broadcast(std::vector<int>& x) {
   timed([&] { MPI_Bcast(x.data(), n, MPI_INT, 0, MPI_COMM_WORLD); });
 }
 
+std::string first_nonempty(const std::string& local) {
+  const int n = ranks();
+  if (n == 1) return local;
+  int mine = local.empty() ? n : rank(), root = n;
+  timed([&] { MPI_Allreduce(&mine, &root, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD); });
+  if (root == n) return {};
+  std::string out = local;
+  int size = static_cast<int>(out.size());
+  timed([&] { MPI_Bcast(&size, 1, MPI_INT, root, MPI_COMM_WORLD); });
+  out.resize(size);
+  timed([&] { MPI_Bcast(out.data(), size, MPI_CHAR, root, MPI_COMM_WORLD); });
+  return out;
+}
+
 std::vector<double> all_gather(double x) {
   std::vector<double> out(ranks(), x);
   if (ranks() > 1)
@@ -178,6 +194,32 @@ std::vector<std::vector<char>> all_to_all(const std::vector<std::vector<char>>& 
   for (int r = 0; r < n; ++r)
     out[r].assign(recv.begin() + recv_offsets[r], recv.begin() + recv_offsets[r] + recv_counts[r]);
   return out;
+}
+
+namespace {
+
+/// MPM_TEST_FAIL_RANK and MPM_TEST_FAIL_SUBSTEP, or -1 where unset.
+std::pair<long, long> test_failure() {
+  static const std::pair<long, long> at = [] {
+    const char* r = std::getenv("MPM_TEST_FAIL_RANK");
+    const char* s = std::getenv("MPM_TEST_FAIL_SUBSTEP");
+    if (!r || !s) return std::pair<long, long>{-1, -1};
+    return std::pair<long, long>{std::strtol(r, nullptr, 10), std::strtol(s, nullptr, 10)};
+  }();
+  return at;
+}
+
+}  // namespace
+
+bool test_failure_requested() {
+  return test_failure().first >= 0;
+}
+
+void test_failure_point(std::size_t substeps) {
+  const auto [r, s] = test_failure();
+  if (r == rank() && static_cast<long>(substeps) == s)
+    throw std::runtime_error("test failure at substep " + std::to_string(substeps) +
+                             " (MPM_TEST_FAIL_RANK, MPM_TEST_FAIL_SUBSTEP)");
 }
 
 }  // namespace mpm::parallel

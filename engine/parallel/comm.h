@@ -58,6 +58,9 @@ void broadcast(std::string& x);
 void broadcast(std::vector<int>& x);
 /// Rank 0's value on every rank.
 void broadcast(int& x);
+/// `local` of the lowest rank where it is not empty, on every rank ("" if empty on all): the
+/// cause of a failure only some ranks saw.
+std::string first_nonempty(const std::string& local);
 /// Every rank's value, in rank order, on every rank.
 std::vector<double> all_gather(double x);
 /// Every rank's value, in rank order, on every rank.
@@ -68,5 +71,14 @@ std::vector<std::uint64_t> all_gather(std::uint64_t x);
 std::vector<char> send_receive(const std::vector<char>& send, int to, int from);
 /// Sends buffer r of `send` to rank r and returns what each rank sent here, in rank order.
 std::vector<std::vector<char>> all_to_all(const std::vector<std::vector<char>>& send);
+
+/// Test-only failure hook: true if the environment sets MPM_TEST_FAIL_RANK (the rank) and
+/// MPM_TEST_FAIL_SUBSTEP (the substep count at which it fails); the run then gets a
+/// `test_failure` stage (engine/step/simulation.cpp). Never set by a scene.
+bool test_failure_requested();
+/// The test_failure stage: throws std::runtime_error on the requested rank at the requested
+/// substep (counted from 1, as in report.yaml), so tests can check that one rank's failure
+/// stops every rank cleanly.
+void test_failure_point(std::size_t substeps);
 
 }  // namespace mpm::parallel

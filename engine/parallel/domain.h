@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "engine/core/math.h"
@@ -78,6 +79,14 @@ class Domain {
   /// rank order per object, so rank 0 checks and writes the frame as a one-rank run does.
   void collect(Simulation& sim);
 
+  /// Why a compute stage failed on this rank ("" if none): its later compute stages are then
+  /// skipped, its exchanges still run, and run_frames stops every rank after the substep.
+  const std::string& failure() const { return failure_; }
+  /// Records this rank's first failure (a later one is dropped).
+  void set_failure(std::string why) {
+    if (failure_.empty()) failure_ = std::move(why);
+  }
+
   /// The current slabs.
   const Slabs& slabs() const { return slabs_; }
   /// The counters so far (complete on rank 0 after collect()).
@@ -90,6 +99,7 @@ class Domain {
   DomainStats stats_;
   std::vector<std::size_t> send_slots_;  // storage slots of this rank's ghost blocks
   std::vector<std::size_t> recv_slots_;  // storage slots of the previous rank's ghost blocks
+  std::string failure_;
   double imbalance_sum_ = 0;
   std::uint64_t halo_local_ = 0;  // halo bytes this rank sent
 };

@@ -166,6 +166,17 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
           dt = remaining / remaining_steps;
         }
         sim.substep(dt);
+        if (domain) {
+          // A stage that failed on some rank: every rank stops here with its cause.
+          const std::string failure = parallel::first_nonempty(domain->failure());
+          if (!failure.empty()) {
+            result.status = "error";
+            result.message = failure + " (frame " + std::to_string(f) + ", substep " +
+                             std::to_string(sim.substeps()) + "); the last complete frame is " +
+                             std::to_string(f - 1);
+            break;
+          }
+        }
         result.loop_seconds += std::chrono::duration<double>(clock::now() - s0).count();
         result.dt_min = std::min(result.dt_min, dt);
         result.dt_max = std::max(result.dt_max, dt);
@@ -236,8 +247,9 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
     result.status = "error";
     result.message = e.what();
     if (domain) {
-      // Only this rank may know: the others wait in an exchange. Frames already written are
-      // whole (each is renamed into place), so stopping every rank loses nothing written.
+      // A failure outside the compute stages (an exchange, the frame's gather or scatter):
+      // only this rank may know, and the others wait in an exchange. Frames already written
+      // are whole (each is renamed into place), so stopping every rank loses nothing written.
       spdlog::error("rank {}: {}", parallel::rank(), e.what());
       std::fprintf(stderr, "error: rank %d: %s\n", parallel::rank(), e.what());
       parallel::abort_all(kExitRunFailed);

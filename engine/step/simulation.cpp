@@ -184,12 +184,28 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
 void Simulation::build_stages() {
   const SimulationDesc& s = scene_.simulation;
   stages_.clear();
+  // With more than one rank a stage's exception is kept in the domain and the rank's later
+  // compute stages are skipped, while its exchanges still run (the other ranks wait in them):
+  // run_frames then stops every rank at the end of the substep (docs/distributed.md).
   auto add = [&](std::string name, std::function<void(Real)> fn) {
+    if (domain_)
+      fn = [this, name, fn = std::move(fn)](Real dt) {
+        if (!domain_->failure().empty()) return;
+        try {
+          fn(dt);
+        } catch (const std::exception& e) {
+          domain_->set_failure("rank " + std::to_string(parallel::rank()) + ", stage " + name +
+                               ": " + e.what());
+        }
+      };
+    stages_.push_back({std::move(name), std::move(fn), 0.0});
+  };
+  auto exchange = [&](std::string name, std::function<void(Real)> fn) {
     stages_.push_back({std::move(name), std::move(fn), 0.0});
   };
   add("sort", [this](Real) { sort_particles(particles_, scene_.simulation.kernel, grid_, order_); });
   // With more than one rank: the previous rank's ghost blocks get storage here too.
-  if (domain_) add("halo_blocks", [this](Real) { domain_->share_ghost_blocks(grid_); });
+  if (domain_) exchange("halo_blocks", [this](Real) { domain_->share_ghost_blocks(grid_); });
   if (s.reorder_every > 0)
     add("reorder", [this](Real) {
       if (substeps_ % scene_.simulation.reorder_every != 0) return;
@@ -239,7 +255,7 @@ void Simulation::build_stages() {
         particles_to_grid(particles_, order_, sd.transfer, sd.kernel, dt, grid_,
                           sd.simd ? TransferPath::simd : TransferPath::scalar, fold);
       });
-  if (domain_) add("halo_sum", [this](Real) { domain_->add_ghost_sums(grid_); });
+  if (domain_) exchange("halo_sum", [this](Real) { domain_->add_ghost_sums(grid_); });
   add("grid_update", [this](Real) { grid_update(grid_); });
   // PIC and APIC scatter the stress force as an impulse (see particles_to_grid).
   if (s.transfer == Transfer::flip)
@@ -255,7 +271,7 @@ void Simulation::build_stages() {
     add("colliders",
         [this](Real dt) { wall_work_ += apply_colliders(colliders_, time_ + dt, grid_); });
   add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
-  if (domain_) add("halo_velocity", [this](Real) { domain_->return_ghost_velocities(grid_); });
+  if (domain_) exchange("halo_velocity", [this](Real) { domain_->return_ghost_velocities(grid_); });
   add("grid_to_particles", [this](Real dt) {
     const SimulationDesc& sd = scene_.simulation;
     grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_,
@@ -274,8 +290,10 @@ void Simulation::build_stages() {
     clamped_total_ += last_advect_.clamped;
   });
   // The run's checks see every rank's advection; particles move to their new slab's rank.
+  if (domain_ && parallel::test_failure_requested())
+    add("test_failure", [this](Real) { parallel::test_failure_point(substeps_ + 1); });
   if (domain_)
-    add("migrate", [this](Real) {
+    exchange("migrate", [this](Real) {
       const AdvectStats local = last_advect_;
       domain_->migrate(*this);
       last_advect_ = domain_->combine(local);
