@@ -50,14 +50,21 @@ MaterialInfo snow_info() {
   ParamSpec xi{"hardening", "", "xi: moduli scale by exp(xi (1 - Jp))", false, 10, 0, 1e300};
   ParamSpec jp{"min_Jp", "", "smallest plastic volume ratio Jp (0: no clamp); bounds hardening",
                false, 0, 0, 1, false, true};
-  params.insert(params.end(), {tc, ts, xi, jp});
+  ParamSpec spread{"initial_Jp_spread", "",
+                   "s: Jp starts uniform in [1 - s, 1 + s] per particle (hardness varies by "
+                   "exp(-xi (Jp - 1))); 0: uniform snow",
+                   false, 0, 0, 0.5};
+  params.insert(params.end(), {tc, ts, xi, jp, spread});
   return {"snow", "fixed corotated with hardening and singular-value clamping (plastic)",
           "Stomakhin et al. 2013, A material point method for snow simulation", params, true,
           [](const ParamValues& v, const GroupInfo& g) {
             const Lame l = lame_from_young(v.at("E"), v.at("nu"));
+            // Optional for callers that build ParamValues by hand (engine/tools/bench.cpp).
+            const auto s = v.find("initial_Jp_spread");
+            const Real spread = s == v.end() ? 0 : s->second;
             const materials::SnowPlasticity plastic{v.at("critical_compression"),
                                                     v.at("critical_stretch"), v.at("hardening"),
-                                                    v.at("min_Jp")};
+                                                    v.at("min_Jp"), spread};
             return std::make_unique<materials::SnowGroup>(
                 materials::FixedCorotated{l.mu, l.lambda}, plastic, g.density, g.count);
           }};

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <vector>
 
 #include "engine/core/reduce.h"
@@ -25,6 +26,7 @@ struct SnowPlasticity {
   Real critical_stretch = 7.5e-3;      ///< theta_s: elastic singular values <= 1 + theta_s.
   Real hardening = 10;                 ///< xi: mu, lambda scale by exp(xi (1 - Jp)).
   Real min_Jp = 0;                     ///< Jp is kept >= this (0: no clamp, the paper's model).
+  Real initial_Jp_spread = 0;          ///< Jp starts uniform in [1 - this, 1 + this] (0: Jp = 1).
 
   /// Moves the part of Fe outside the clamp range into the plastic part (section 7):
   /// Fe = U clamp(Sigma) V^T and Jp *= det(Sigma) / det(clamp(Sigma)), so det(Fe) Jp is kept
@@ -54,15 +56,30 @@ struct SnowPlasticity {
 
   /// Hardening factor exp(xi (1 - Jp)) applied to mu and lambda.
   Real hardening_factor(Real Jp) const { return std::exp(hardening * (1 - Jp)); }
+
+  /// Starting Jp of the particle with index `index` in its group: 1, or with a spread s > 0,
+  /// 1 + s (2 u - 1) for u uniform in [0, 1) from a hash of the index, so the snow's hardness
+  /// exp(xi (1 - Jp)) varies from particle to particle (deterministic, any thread count).
+  Real initial_Jp(std::uint64_t index) const {
+    if (initial_Jp_spread == 0) return 1;
+    std::uint64_t z = index * 0x9e3779b97f4a7c15ull + 0x632be59bd9b4e019ull;  // splitmix64
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    const Real u = static_cast<Real>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
+    return 1 + initial_Jp_spread * (2 * u - 1);
+  }
 };
 
 /// MaterialGroup for snow: per-particle Jp, allocated for this group's particles only.
 class SnowGroup final : public MaterialGroup {
  public:
-  /// `elastic` holds the unhardened mu0 and lambda0; `count` particles start with Jp = 1.
+  /// `elastic` holds the unhardened mu0 and lambda0; `count` particles start with
+  /// plastic.initial_Jp(p) (1 unless initial_Jp_spread > 0).
   SnowGroup(const FixedCorotated& elastic, const SnowPlasticity& plastic, Real rho0,
             std::size_t count)
-      : elastic_(elastic), plastic_(plastic), rho0_(rho0), Jp_(count, 1) {}
+      : elastic_(elastic), plastic_(plastic), rho0_(rho0), Jp_(count) {
+    for (std::size_t p = 0; p < count; ++p) Jp_[p] = plastic_.initial_Jp(p);
+  }
 
   void compute_stress(std::span<const StoredMat3> F, Real volume0,
                       std::span<StoredMat3> out) const override {

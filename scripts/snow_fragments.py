@@ -1,0 +1,51 @@
+#!/usr/bin/python3
+"""Fragments of a run's frame and the plastic Jp of its snow, as tests/physics/fragments.h counts
+them: particles binned into cubic cells of edge CELL (m), face-sharing occupied cells joined.
+
+Usage: /usr/bin/python3 scripts/snow_fragments.py RUN_DIR FRAME CELL
+Prints the fragment count, the largest fragment's share and the largest sizes of frame FRAME;
+then, from RUN_DIR/checkpoint.h5 (the last frame's state), the share of particles with Jp > 1,
+Jp's range, and the "intact pieces": the fragments of the particles whose hardness
+exp(xi (1 - Jp)) is still at least 1% of the virgin snow's (Jp <= 1 + ln(100) / 10 for
+xi = 10), i.e. chunks that only failed, cohesionless snow joins."""
+import os
+import sys
+
+import h5py
+import numpy as np
+from scipy import ndimage
+
+run, frame, cell = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
+
+
+def fragments(x):
+    """Fragment sizes, largest first, of the points x (N x 3)."""
+    ijk = np.floor(x / cell).astype(np.int64)
+    ijk -= ijk.min(axis=0)
+    occupied = np.zeros(ijk.max(axis=0) + 1, bool)
+    occupied[tuple(ijk.T)] = True
+    labels, _ = ndimage.label(occupied)  # default structure: face neighbours only
+    return np.sort(np.bincount(labels[tuple(ijk.T)])[1:])[::-1]
+
+
+with h5py.File(os.path.join(run, f"frame_{frame:05d}.h5")) as f:
+    x = f["position"][:].astype(np.float64)
+    t = float(f.attrs["time"])
+sizes = fragments(x)
+count = len(sizes)
+print(f"frame {frame} (t = {t:.4f} s): {len(x)} particles, {count} fragments, largest "
+      f"{sizes[0] / len(x):.1%}, sizes {sizes[:6].tolist()}")
+checkpoint = os.path.join(run, "checkpoint.h5")
+if os.path.exists(checkpoint):
+    with h5py.File(checkpoint) as f:
+        if "material_state_0" in f:
+            Jp = f["material_state_0"][:]
+            print(f"last frame: Jp > 1 for {(Jp > 1).mean():.1%}, Jp in [{Jp.min():.3f}, "
+                  f"{Jp.max():.3g}], median {np.median(Jp):.3f}")
+            intact = f["x"][:][Jp <= 1 + np.log(100) / 10]
+            n = len(Jp)
+            if len(intact):
+                pieces = fragments(intact)
+                print(f"intact pieces: {len(intact) / n:.1%} of the particles intact, largest "
+                      f"piece {pieces[0] / n:.1%}, pieces of >= 1%: {(pieces >= 0.01 * n).sum()}, "
+                      f"sizes {pieces[:6].tolist()}")
