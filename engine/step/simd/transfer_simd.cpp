@@ -373,10 +373,9 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
         const auto fx = hn::Mul(hn::Sub(x[a], hn::Set(dd, g.origin[a])), hn::Set(dd, g.inv_h[a]));
         const auto b = hn::Add(hn::Floor(hn::Sub(fx, hn::Set(dd, kShift))), hn::Set(dd, kFirst));
         hn::Store(hn::DemoteTo(dh, hn::Sub(fx, b)), dh, dist[a] + h);
-        hn::Store(hn::DemoteTo(dh, hn::Sub(hn::MulAdd(b, hn::Set(dd, g.h[a]),
-                                                      hn::Set(dd, g.origin[a])),
-                                           x[a])),
-                  dh, corner[a] + h);
+        const auto corner_a =
+            hn::Sub(hn::MulAdd(b, hn::Set(dd, g.h[a]), hn::Set(dd, g.origin[a])), x[a]);
+        hn::Store(hn::DemoteTo(dh, corner_a), dh, corner[a] + h);
         hn::Store(hn::DemoteTo(dih, b), dih, base[a] + h);
       }
     }
@@ -582,11 +581,9 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd))
       hn::StoreInterleaved3(hn::PromoteTo(dd, hn::Load(dh, out[18] + h)),
                             hn::PromoteTo(dd, hn::Load(dh, out[19] + h)),
-                            hn::PromoteTo(dd, hn::Load(dh, out[20] + h)), dd,
-                            p.v[q0 + h].data());
+                            hn::PromoteTo(dd, hn::Load(dh, out[20] + h)), dd, p.v[q0 + h].data());
   } else {
-    for (std::size_t l = 0; l < count; ++l)
-      p.v[q0 + l] = Vec3(out[18][l], out[19][l], out[20][l]);
+    for (std::size_t l = 0; l < count; ++l) p.v[q0 + l] = Vec3(out[18][l], out[19][l], out[20][l]);
   }
 }
 
