@@ -357,15 +357,41 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   const DI di;
   alignas(64) float dist[3][kLanes], corner[3][kLanes], Fin[9][kLanes];
   alignas(64) std::int32_t base[3][kLanes];
-  for (std::size_t l = 0; l < kLanes; ++l) {
-    const std::size_t q = q0 + std::min(l, count - 1);
-    for (int a = 0; a < 3; ++a) {
-      const Real fx = (p.x[q][a] - g.origin[a]) * g.inv_h[a];
-      base[a][l] = Traits::base(fx);
-      dist[a][l] = static_cast<float>(fx - base[a][l]);
-      corner[a][l] = static_cast<float>(g.origin[a] + base[a][l] * g.h[a] - p.x[q][a]);
+  if (count == kLanes) {
+    // A full batch: positions loaded three axes at a time into double lanes, the stencil
+    // base, the distance to it and the corner offset computed there (as the scalar lines
+    // below), each rounded to float once.
+    const hn::ScalableTag<double> dd;
+    const hn::Rebind<float, decltype(dd)> dh;
+    const hn::Rebind<std::int32_t, decltype(dd)> dih;
+    constexpr double kShift = K == Kernel::quadratic ? 0.5 : 0.0;  // KernelTraits<K>::base
+    constexpr double kFirst = K == Kernel::cubic ? -1.0 : 0.0;
+    for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd)) {
+      hn::Vec<decltype(dd)> x[3];
+      hn::LoadInterleaved3(dd, p.x[q0 + h].data(), x[0], x[1], x[2]);
+      for (int a = 0; a < 3; ++a) {
+        const auto fx = hn::Mul(hn::Sub(x[a], hn::Set(dd, g.origin[a])), hn::Set(dd, g.inv_h[a]));
+        const auto b = hn::Add(hn::Floor(hn::Sub(fx, hn::Set(dd, kShift))), hn::Set(dd, kFirst));
+        hn::Store(hn::DemoteTo(dh, hn::Sub(fx, b)), dh, dist[a] + h);
+        const auto corner_a =
+            hn::Sub(hn::MulAdd(b, hn::Set(dd, g.h[a]), hn::Set(dd, g.origin[a])), x[a]);
+        hn::Store(hn::DemoteTo(dh, corner_a), dh, corner[a] + h);
+        hn::Store(hn::DemoteTo(dih, b), dih, base[a] + h);
+      }
     }
-    const StoredReal* F = p.F[q].data();
+  } else {
+    for (std::size_t l = 0; l < kLanes; ++l) {
+      const std::size_t q = q0 + std::min(l, count - 1);
+      for (int a = 0; a < 3; ++a) {
+        const Real fx = (p.x[q][a] - g.origin[a]) * g.inv_h[a];
+        base[a][l] = Traits::base(fx);
+        dist[a][l] = static_cast<float>(fx - base[a][l]);
+        corner[a][l] = static_cast<float>(g.origin[a] + base[a][l] * g.h[a] - p.x[q][a]);
+      }
+    }
+  }
+  for (std::size_t l = 0; l < kLanes; ++l) {
+    const StoredReal* F = p.F[q0 + std::min(l, count - 1)].data();
     for (int e = 0; e < 9; ++e) Fin[e][l] = static_cast<float>(F[e]);
   }
   // Runs of lanes with the same stencil cell (the reorder stage keeps a cell's particles
@@ -547,7 +573,17 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       StoredReal* Cq = p.C[q].data();
       for (int e = 0; e < 9; ++e) Cq[e] = static_cast<StoredReal>(out[9 + e][l]);
     }
-    p.v[q] = Vec3(out[18][l], out[19][l], out[20][l]);
+  }
+  if (count == kLanes) {
+    // Velocities widened to double in lanes and stored three axes at a time.
+    const hn::ScalableTag<double> dd;
+    const hn::Rebind<float, decltype(dd)> dh;
+    for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd))
+      hn::StoreInterleaved3(hn::PromoteTo(dd, hn::Load(dh, out[18] + h)),
+                            hn::PromoteTo(dd, hn::Load(dh, out[19] + h)),
+                            hn::PromoteTo(dd, hn::Load(dh, out[20] + h)), dd, p.v[q0 + h].data());
+  } else {
+    for (std::size_t l = 0; l < count; ++l) p.v[q0 + l] = Vec3(out[18][l], out[19][l], out[20][l]);
   }
 }
 
