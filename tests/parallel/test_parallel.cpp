@@ -10,6 +10,9 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
+
+#include <yaml-cpp/yaml.h>
 
 #include "engine/io/output.h"
 #include "engine/io/summary.h"
@@ -20,6 +23,10 @@ namespace fs = std::filesystem;
 using namespace mpm;
 
 namespace {
+
+/// The frame-end energies of two ranks against one, relative to the start's: round-off of
+/// sums over 1e5 particles and of the states compared below.
+constexpr double kRelativeEnergyBound = 1e-6;
 
 /// Runs `mpm ARGS` on `ranks` ranks (1: without mpirun) with one thread each and the
 /// environment settings `env` ("NAME=value "); exit code.
@@ -66,6 +73,13 @@ Agreement worst_diff(const fs::path& a, const fs::path& b, int last) {
   return worst;
 }
 
+/// energy_start and energy_max of a run's report.yaml, J (with more than one rank: sums of
+/// each rank's part, added in rank order).
+std::pair<double, double> report_energies(const fs::path& dir) {
+  const YAML::Node r = YAML::LoadFile((dir / "report.yaml").string());
+  return {r["energy_start"].as<double>(), r["energy_max"].as<double>()};
+}
+
 /// `scene` for `frames` frames on 1 and 2 ranks; the worst frame difference between them.
 Agreement one_against_two(const std::string& name, const std::string& scene,
                           const std::string& sets, int frames) {
@@ -82,6 +96,13 @@ Agreement one_against_two(const std::string& name, const std::string& scene,
                               (dir / "one").string() + " > " + (dir / "compare.log").string() +
                               " 2>&1";
   CHECK(std::system(compare.c_str()) == 0);
+  // The frame-end energies are reductions over the ranks' own particles: the same sums added
+  // in another order, and states that differ by the round-off bounded below.
+  const auto [start1, max1] = report_energies(dir / "one");
+  const auto [start2, max2] = report_energies(dir / "two");
+  INFO("energy_start " << start1 << " / " << start2 << " J, energy_max " << max1 << " / " << max2);
+  CHECK(std::abs(start2 - start1) <= kRelativeEnergyBound * std::abs(start1));
+  CHECK(std::abs(max2 - max1) <= kRelativeEnergyBound * std::abs(start1));
   return worst_diff(dir / "one", dir / "two", frames);
 }
 
@@ -166,6 +187,8 @@ TEST_CASE("two runs on two ranks are bit-identical", "[parallel]") {
   CHECK(d.max_position == 0);
   CHECK(d.max_velocity == 0);
   CHECK(d.max_J == 0);
+  // The frame-end energy check's reductions add the ranks' parts in rank order.
+  CHECK(report_energies(dir / "a") == report_energies(dir / "b"));
 }
 
 TEST_CASE("more ranks than slabs: an error on rank 0 and exit 2 on every rank", "[parallel]") {
