@@ -65,6 +65,8 @@ void broadcast(int& x);
 std::string first_nonempty(const std::string& local);
 /// Every rank's value, in rank order, on every rank.
 std::vector<double> all_gather(double x);
+/// Every rank's `x` (the same size on every rank), concatenated in rank order, on every rank.
+std::vector<double> all_gather(const std::vector<double>& x);
 /// Sum over all ranks added in rank order (0, 1, ...) on every rank: the same bits every run
 /// for the same partial values, whatever MPI's reduction tree.
 double sum_in_rank_order(double x);

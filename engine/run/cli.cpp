@@ -487,7 +487,9 @@ int cmd_run(const Args& args) {
   if (args.command == "golden") observers = {&golden};
   else observers = {&output, &summary};
   if (!args.quiet) observers.push_back(&progress);
-  if (!root) observers.clear();  // rank 0 holds every particle at each frame end
+  // Rank 0 holds every particle after each frame's gather; a collective observer (the
+  // summary) reduces over every rank's particles before it, so it runs on every rank.
+  if (!root) std::erase_if(observers, [](const mpm::Observer* o) { return !o->collective(); });
   const mpm::RunResult r =
       mpm::run_frames(*sim, frames, scene.simulation.frame_dt, observers, &g_stop,
                       resumed_frame + 1);

@@ -255,14 +255,26 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
         }
         result.check_seconds += seconds_since(t0);
       }
-      // The observers (frame files, summaries, checkpoint) still read every particle on rank 0.
+      // Collective observers (the summary) reduce over the slabs before the gather; the others
+      // (frame files, checkpoint, progress) still read every particle on rank 0 after it.
+      if (domain && result.status == "ok") {
+        t0 = clock::now();
+        sim.set_time(frame_end);
+        notify([&] {
+          for (Observer* o : observers)
+            if (o->collective()) o->on_frame(sim, f);
+        });
+        result.observer_seconds += seconds_since(t0);
+        agree();  // an observer's error on rank 0 stops every rank after the gather
+      }
       if (domain) domain->collect(sim);
       if (result.status != "ok") break;
       sim.set_time(frame_end);
       result.frames_done = f;
       t0 = clock::now();
       notify([&] {
-        for (Observer* o : observers) o->on_frame(sim, f);
+        for (Observer* o : observers)
+          if (!domain || !o->collective()) o->on_frame(sim, f);
       });
       result.observer_seconds += seconds_since(t0);
       agree();

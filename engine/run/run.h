@@ -58,6 +58,10 @@ class Observer {
   virtual void on_frame(const Simulation& sim, int frame) {}
   /// Once at the end, whatever the status.
   virtual void on_finish(const Simulation& sim, const RunResult& result) {}
+  /// True for an observer whose frame-end work is a reduction (engine/parallel/comm.h): with
+  /// more than one rank it is called on every rank with the rank's own particles, before the
+  /// frame's gather, and writes on rank 0 only. Others are called on rank 0 after the gather.
+  virtual bool collective() const { return false; }
 };
 
 /// Total energy less wall work may not exceed its start by more than this fraction of the

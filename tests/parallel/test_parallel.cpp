@@ -190,6 +190,8 @@ TEST_CASE("two runs on two ranks are bit-identical", "[parallel]") {
   CHECK(d.max_J == 0);
   // The frame-end energy check's reductions add the ranks' parts in rank order.
   CHECK(report_energies(dir / "a") == report_energies(dir / "b"));
+  // So do the summary's per-object statistics, each rank summing its own particles.
+  CHECK(read_text(dir / "a" / "summary.yaml") == read_text(dir / "b" / "summary.yaml"));
 }
 
 TEST_CASE("more ranks than slabs: an error on rank 0 and exit 2 on every rank", "[parallel]") {
