@@ -159,9 +159,7 @@ std::vector<double> all_gather(const std::vector<double>& x) {
   if (ranks() == 1) return x;
   std::vector<double> out(x.size() * ranks());
   const int n = static_cast<int>(x.size());
-  timed([&] {
-    MPI_Allgather(x.data(), n, MPI_DOUBLE, out.data(), n, MPI_DOUBLE, MPI_COMM_WORLD);
-  });
+  timed([&] { MPI_Allgather(x.data(), n, MPI_DOUBLE, out.data(), n, MPI_DOUBLE, MPI_COMM_WORLD); });
   comm_stats().bytes += x.size() * sizeof(double);
   return out;
 }

@@ -3,6 +3,7 @@
 // on every rank without a hang, a checkpoint resumed on another number of ranks (both ways),
 // and a rank failing mid-substep stopping every rank with the cause in report.yaml.
 #include <sys/wait.h>
+#include <yaml-cpp/yaml.h>
 
 #include <catch2/catch.hpp>
 #include <cmath>
@@ -12,8 +13,6 @@
 #include <regex>
 #include <string>
 #include <utility>
-
-#include <yaml-cpp/yaml.h>
 
 #include "engine/io/output.h"
 #include "engine/io/summary.h"
