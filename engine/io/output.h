@@ -75,12 +75,18 @@ class FrameOutput : public Observer {
   void on_finish(const Simulation& sim, const RunResult& result) override;
   /// Seconds spent writing frames so far.
   double seconds() const { return seconds_; }
+  /// True when each rank writes its own particles into the HDF5 frames (more than one rank,
+  /// MPM_PARALLEL_HDF5, HDF5 the only format and no checkpoint): called on every rank before
+  /// the frame's gather, which the run then skips (docs/distributed.md "Output").
+  bool collective() const override { return collective_; }
 
  private:
   void write(const Simulation& sim, int frame);
+  void write_index(const Simulation& sim, int frame, std::size_t particles) const;
   std::filesystem::path dir_;
   OutputDesc desc_;
   int resumed_frame_ = 0;
+  bool collective_ = false;
   int last_frame_ = -1;
   double seconds_ = 0;
   double surface_seconds_ = 0;  // of seconds_, building and writing mesh and vdb surfaces

@@ -310,6 +310,10 @@ void Domain::distribute(Simulation& sim) {
 
 void Domain::collect(Simulation& sim) {
   exchange(sim, std::vector<int>(sim.particles().size(), 0));
+  collect_counters(sim);
+}
+
+void Domain::collect_counters(Simulation& sim) {
   const Real work = sum_all(static_cast<double>(sim.wall_work()));
   const std::uint64_t clamped = sum_all(static_cast<std::uint64_t>(sim.clamped_particles()));
   if (rank() == 0)

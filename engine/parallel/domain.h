@@ -80,6 +80,9 @@ class Domain {
   /// Frame end: every particle, material state, wall work and clamp count goes to rank 0, in
   /// rank order per object, so rank 0 checks and writes the frame as a one-rank run does.
   void collect(Simulation& sim);
+  /// Frame end without the gather: only collect()'s totals (wall work, clamp count on rank 0)
+  /// and counters, when no observer reads every particle on rank 0.
+  void collect_counters(Simulation& sim);
 
   /// Why a compute stage failed on this rank ("" if none): its later compute stages are then
   /// skipped, its exchanges still run, and run_frames stops every rank after the substep.

@@ -494,11 +494,15 @@ int cmd_run(const Args& args) {
       mpm::run_frames(*sim, frames, scene.simulation.frame_dt, observers, &g_stop,
                       resumed_frame + 1);
 
-  const double steps = static_cast<double>(sim->particles().size()) * sim->substeps();
+  // Each rank's own particles when no observer needed the frame's gather: count over the ranks.
+  const std::size_t particles =
+      sim->domain() ? mpm::parallel::sum_all(static_cast<std::uint64_t>(sim->particles().size()))
+                    : sim->particles().size();
+  const double steps = static_cast<double>(particles) * sim->substeps();
   if (!root) return r.status == "ok" ? mpm::kExitOk : mpm::kExitRunFailed;
   std::printf("%s: %s, %zu particles, %d frames, %zu substeps in %.1f s (%.2fM particle-steps/s; "
               "%.2fM in the substep loop); %s%s\n",
-              args.scene.c_str(), r.status.c_str(), sim->particles().size(), r.frames_done,
+              args.scene.c_str(), r.status.c_str(), particles, r.frames_done,
               sim->substeps(), r.wall_seconds,
               r.wall_seconds > 0 ? steps / r.wall_seconds / 1e6 : 0.0,
               r.loop_seconds > 0 ? steps / r.loop_seconds / 1e6 : 0.0, written.c_str(),

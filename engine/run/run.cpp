@@ -148,6 +148,11 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       if (result.status == "ok") result.status = "error", result.message = e.what();
     }
   };
+  // The frame's gather to rank 0 only when an observer there reads every particle (rank 0's
+  // list decides: other ranks hold only collective observers).
+  bool gather = false;
+  for (const Observer* o : observers) gather = gather || o->reads_all_particles();
+  if (domain) gather = parallel::any_all(gather);
   try {
     auto t0 = clock::now();
     notify([&] {
@@ -267,7 +272,8 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
         result.observer_seconds += seconds_since(t0);
         agree();  // an observer's error on rank 0 stops every rank after the gather
       }
-      if (domain) domain->collect(sim);
+      if (domain && gather) domain->collect(sim);
+      else if (domain) domain->collect_counters(sim);
       if (result.status != "ok") break;
       sim.set_time(frame_end);
       result.frames_done = f;
