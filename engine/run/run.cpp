@@ -279,8 +279,10 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       result.frames_done = f;
       t0 = clock::now();
       notify([&] {
-        for (Observer* o : observers)
+        for (Observer* o : observers) {
           if (!domain || !o->collective()) o->on_frame(sim, f);
+          else if (o->reads_all_particles()) o->on_frame_gathered(sim, f);
+        }
       });
       result.observer_seconds += seconds_since(t0);
       agree();
