@@ -1,6 +1,8 @@
 #include "engine/io/output.h"
 
+#include "engine/parallel/comm.h"
 #include "engine/parallel/domain.h"
+#include "engine/parallel/frame_hdf5.h"
 
 #include "engine/io/atomic_file.h"
 
@@ -305,7 +307,33 @@ int restore_checkpoint(const std::filesystem::path& file, Simulation& sim) {
 }
 
 FrameOutput::FrameOutput(std::filesystem::path dir, const OutputDesc& desc, int resumed_frame)
-    : dir_(std::move(dir)), desc_(desc), resumed_frame_(resumed_frame) {}
+    : dir_(std::move(dir)), desc_(desc), resumed_frame_(resumed_frame) {
+  const bool hdf5 =
+      std::find(desc_.formats.begin(), desc_.formats.end(), Format::hdf5) != desc_.formats.end();
+  collective_ = parallel::ranks() > 1 && parallel::collective_hdf5() && hdf5;
+  others_ = desc_.checkpoint || desc_.formats != std::vector<Format>{Format::hdf5};
+}
+
+void FrameOutput::write_index(const Simulation& sim, int frame, std::size_t particles) const {
+  std::vector<XdmfFrame> index;
+  for (int k = 0; k <= frame; ++k)
+    if (std::filesystem::exists(frame_path(dir_, k)))
+      index.push_back({frame_path(dir_, k).filename().string(),
+                       k == frame ? static_cast<double>(sim.time())
+                                  : k * sim.scene().simulation.frame_dt,
+                       particles});
+  write_xdmf(dir_ / "frames.xmf", index);
+}
+
+void FrameOutput::write_collective(const Simulation& sim, int frame) {
+  // Every rank writes its own particles at their id rows; rank 0 writes the index.
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::size_t n = parallel::write_frame_hdf5_collective(
+      frame_path(dir_, frame), sim.particles(), static_cast<double>(sim.time()), frame);
+  if (parallel::rank() == 0) write_index(sim, frame, n);
+  seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  last_frame_ = frame;
+}
 
 void FrameOutput::write(const Simulation& sim, int frame) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -313,15 +341,9 @@ void FrameOutput::write(const Simulation& sim, int frame) {
   for (Format f : desc_.formats) {
     switch (f) {
       case Format::hdf5: {
+        if (collective_) break;  // written by every rank before the gather
         write_frame_hdf5(frame_path(dir_, frame), view);
-        std::vector<XdmfFrame> index;
-        for (int k = 0; k <= frame; ++k)
-          if (std::filesystem::exists(frame_path(dir_, k)))
-            index.push_back({frame_path(dir_, k).filename().string(),
-                             k == frame ? static_cast<double>(sim.time())
-                                        : k * sim.scene().simulation.frame_dt,
-                             view.size()});
-        write_xdmf(dir_ / "frames.xmf", index);
+        write_index(sim, frame, view.size());
         break;
       }
       case Format::bgeo: write_bgeo(numbered(dir_, "frame_%05d.bgeo", frame), view); break;
@@ -369,14 +391,29 @@ void FrameOutput::on_start(const Simulation& sim, int) {
   std::filesystem::create_directories(dir_, ec);
   if (ec) throw std::runtime_error("cannot create output folder '" + dir_.string() + "': " +
                                    ec.message());
-  if (resumed_frame_ == 0) write(sim, 0);
-  else last_frame_ = resumed_frame_;
+  if (resumed_frame_ > 0) {
+    last_frame_ = resumed_frame_;
+    return;
+  }
+  // Frame 0: every particle is on rank 0 before the first frame's distribution.
+  if (collective_) write_collective(sim, 0);
+  if (!collective_ || (others_ && parallel::rank() == 0)) write(sim, 0);
 }
 
-void FrameOutput::on_frame(const Simulation& sim, int frame) { write(sim, frame); }
+void FrameOutput::on_frame(const Simulation& sim, int frame) {
+  if (collective_) write_collective(sim, frame);
+  else write(sim, frame);
+}
+
+void FrameOutput::on_frame_gathered(const Simulation& sim, int frame) {
+  if (others_ && parallel::rank() == 0) write(sim, frame);
+}
 
 void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
-  const std::size_t n = sim.particles().size();
+  // Without the frame's gather each rank holds its own particles: count them over the ranks.
+  std::size_t n = sim.particles().size();
+  if (collective_) n = parallel::sum_all(static_cast<std::uint64_t>(n));
+  if (parallel::rank() != 0) return;
   YAML::Emitter y;
   y << YAML::BeginMap;
   y << YAML::Key << "status" << YAML::Value << r.status;
@@ -425,6 +462,8 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
   if (sim.domain()) ds = sim.domain()->stats();
   y << YAML::Key << "ranks" << YAML::Value << ds.ranks;
   y << YAML::Key << "particles_per_rank" << YAML::Value << YAML::Flow << ds.particles;
+  // Each rank wrote its own particles into the HDF5 frames, without the frame's gather.
+  y << YAML::Key << "collective_hdf5" << YAML::Value << collective_;
   y << YAML::Key << "load_imbalance" << YAML::Value << YAML::Flow << YAML::BeginMap
     << YAML::Key << "max" << YAML::Value << ds.imbalance_max << YAML::Key << "mean"
     << YAML::Value << ds.imbalance_mean << YAML::EndMap;

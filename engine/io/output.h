@@ -75,12 +75,24 @@ class FrameOutput : public Observer {
   void on_finish(const Simulation& sim, const RunResult& result) override;
   /// Seconds spent writing frames so far.
   double seconds() const { return seconds_; }
+  /// True when each rank writes its own particles into the HDF5 frames (more than one rank,
+  /// MPM_PARALLEL_HDF5, HDF5 among the formats): on_frame runs on every rank before the
+  /// frame's gather (docs/distributed.md "Output").
+  bool collective() const override { return collective_; }
+  /// The other formats and the checkpoint need every particle on rank 0 (the gather).
+  bool reads_all_particles() const override { return !collective_ || others_; }
+  /// After the gather, when collective: the other formats and the checkpoint on rank 0.
+  void on_frame_gathered(const Simulation& sim, int frame) override;
 
  private:
   void write(const Simulation& sim, int frame);
+  void write_collective(const Simulation& sim, int frame);
+  void write_index(const Simulation& sim, int frame, std::size_t particles) const;
   std::filesystem::path dir_;
   OutputDesc desc_;
   int resumed_frame_ = 0;
+  bool collective_ = false;
+  bool others_ = false;  // formats besides HDF5, or the checkpoint
   int last_frame_ = -1;
   double seconds_ = 0;
   double surface_seconds_ = 0;  // of seconds_, building and writing mesh and vdb surfaces

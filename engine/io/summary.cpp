@@ -3,6 +3,7 @@
 #include "engine/core/reduce.h"
 
 #include "engine/io/atomic_file.h"
+#include "engine/parallel/comm.h"
 
 #include <algorithm>
 #include <charconv>
@@ -44,8 +45,22 @@ FrameSummary summarize(const Simulation& sim, int frame) {
       Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
       Vec3 hi = Vec3::Constant(-std::numeric_limits<double>::infinity());
     };
+    const auto combine = [](Sums a, const Sums& b) {
+      a.mass += b.mass;
+      a.mx += b.mx;
+      a.x_sum += b.x_sum;
+      a.lo = a.lo.cwiseMin(b.lo);
+      a.hi = a.hi.cwiseMax(b.hi);
+      a.speed_sum += b.speed_sum;
+      a.max_speed = std::max(a.max_speed, b.max_speed);
+      a.kinetic += b.kinetic;
+      a.gravitational += b.gravitational;
+      a.momentum += b.momentum;
+      a.angular += b.angular;
+      return a;
+    };
     const std::size_t first = std::min(o.first, end);
-    const Sums t = reduce_chunks(
+    Sums t = reduce_chunks(
         end - first, Sums{},
         [&](std::size_t a, std::size_t b) {
           Sums c;
@@ -69,21 +84,39 @@ FrameSummary summarize(const Simulation& sim, int frame) {
           }
           return c;
         },
-        [](Sums a, const Sums& b) {
-          a.mass += b.mass;
-          a.mx += b.mx;
-          a.x_sum += b.x_sum;
-          a.lo = a.lo.cwiseMin(b.lo);
-          a.hi = a.hi.cwiseMax(b.hi);
-          a.speed_sum += b.speed_sum;
-          a.max_speed = std::max(a.max_speed, b.max_speed);
-          a.kinetic += b.kinetic;
-          a.gravitational += b.gravitational;
-          a.momentum += b.momentum;
-          a.angular += b.angular;
-          return a;
-        });
-    const std::size_t n = end - first;
+        combine);
+    std::size_t n = end - first;
+    // One material range per object in practice; any range lying inside the object counts.
+    double elastic = 0;
+    const std::vector<Real>& range_energy = sim.range_elastic_energies();
+    for (std::size_t k = 0; k < sim.materials().size(); ++k) {
+      const MaterialRange& r = sim.materials()[k];
+      if (r.count == 0 || !r.material || r.first < o.first || r.first + r.count > end) continue;
+      elastic += range_energy[k];
+    }
+    if (sim.domain()) {
+      // Each rank's sums of its own particles, combined in rank order on every rank (the
+      // same bits every run); no particle leaves its rank.
+      std::vector<double> mine = {t.mass, t.speed_sum, t.max_speed, t.kinetic, t.gravitational,
+                                  elastic, static_cast<double>(n)};
+      for (const Vec3* v : {&t.mx, &t.x_sum, &t.momentum, &t.angular, &t.lo, &t.hi})
+        mine.insert(mine.end(), v->data(), v->data() + 3);
+      const std::vector<double> all = parallel::all_gather(mine);
+      elastic = 0;
+      n = 0;
+      for (std::size_t at = 0; at < all.size(); at += mine.size()) {
+        const double* d = &all[at];
+        Sums part;
+        part.mass = d[0], part.speed_sum = d[1], part.max_speed = d[2], part.kinetic = d[3];
+        part.gravitational = d[4];
+        Vec3* fields[] = {&part.mx, &part.x_sum, &part.momentum, &part.angular, &part.lo, &part.hi};
+        for (int f = 0; f < 6; ++f) *fields[f] = Vec3(d[7 + 3 * f], d[8 + 3 * f], d[9 + 3 * f]);
+        t = at == 0 ? part : combine(t, part);
+        elastic += d[5];
+        n += static_cast<std::size_t>(d[6]);
+      }
+      s.particles = n;
+    }
     if (t.mass > 0) {
       s.centroid = t.mx / t.mass;
     } else if (n > 0) {
@@ -99,14 +132,6 @@ FrameSummary summarize(const Simulation& sim, int frame) {
     s.gravitational_energy = t.gravitational;
     s.linear_momentum = t.momentum;
     s.angular_momentum = t.angular;
-    // One material range per object in practice; any range lying inside the object counts.
-    double elastic = 0;
-    const std::vector<Real>& range_energy = sim.range_elastic_energies();
-    for (std::size_t k = 0; k < sim.materials().size(); ++k) {
-      const MaterialRange& r = sim.materials()[k];
-      if (r.count == 0 || !r.material || r.first < o.first || r.first + r.count > end) continue;
-      elastic += range_energy[k];
-    }
     s.elastic_energy = elastic;
     out.objects.push_back(std::move(s));
   }
@@ -356,6 +381,7 @@ void SummaryWriter::on_start(const Simulation& sim, int) {
   summary_ = RunSummary{};
   summary_.scene = sim.scene().file.filename().string();
   FrameSummary first = summarize(sim, start);
+  if (parallel::rank() != 0) return;  // rank 0 writes the summary
   if (start > 0) {
     // Resuming: keep the earlier frames of this run's summary if they describe the same objects.
     try {
@@ -381,7 +407,9 @@ void SummaryWriter::on_start(const Simulation& sim, int) {
 }
 
 void SummaryWriter::on_frame(const Simulation& sim, int frame) {
-  summary_.frames.push_back(summarize(sim, frame));
+  FrameSummary f = summarize(sim, frame);
+  if (parallel::rank() != 0) return;
+  summary_.frames.push_back(std::move(f));
   write();
 }
 

@@ -46,8 +46,10 @@ struct RunSummary {
   std::vector<FrameSummary> frames;  ///< Frame 0 first.
 };
 
-/// Reduces the current state of `sim` to one FrameSummary. Sums run serially in particle order,
-/// so the result depends only on the state, not on the thread count.
+/// Reduces the current state of `sim` to one FrameSummary. Sums run over fixed chunks in
+/// particle order, so the result depends only on the state, not on the thread count. With
+/// more than one rank it is collective: each rank sums its own particles and the parts are
+/// combined in rank order on every rank.
 FrameSummary summarize(const Simulation& sim, int frame);
 
 /// The YAML text of `summary` (numbers in shortest round-trip form, so reading it back gives
@@ -82,6 +84,8 @@ class SummaryWriter : public Observer {
   void on_frame(const Simulation& sim, int frame) override;
   /// Rewrites the file, whatever the status.
   void on_finish(const Simulation& sim, const RunResult& result) override;
+  /// summarize() reduces over the ranks; only rank 0 keeps and writes the summary.
+  bool collective() const override { return true; }
   /// What has been recorded so far.
   const RunSummary& summary() const { return summary_; }
   /// The file written.

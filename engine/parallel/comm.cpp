@@ -96,6 +96,16 @@ std::uint64_t sum_all(std::uint64_t x) {
   return out;
 }
 
+std::vector<std::uint64_t> sum_all(std::vector<std::uint64_t> x) {
+  if (ranks() == 1) return x;
+  std::vector<std::uint64_t> out(x.size());
+  timed([&] {
+    MPI_Allreduce(x.data(), out.data(), static_cast<int>(x.size()), MPI_UINT64_T, MPI_SUM,
+                  MPI_COMM_WORLD);
+  });
+  return out;
+}
+
 bool any_all(bool x) {
   if (ranks() == 1) return x;
   int in = x ? 1 : 0, out = 0;
@@ -143,6 +153,22 @@ std::vector<double> all_gather(double x) {
   if (ranks() > 1)
     timed([&] { MPI_Allgather(&x, 1, MPI_DOUBLE, out.data(), 1, MPI_DOUBLE, MPI_COMM_WORLD); });
   return out;
+}
+
+std::vector<double> all_gather(const std::vector<double>& x) {
+  if (ranks() == 1) return x;
+  std::vector<double> out(x.size() * ranks());
+  const int n = static_cast<int>(x.size());
+  timed([&] { MPI_Allgather(x.data(), n, MPI_DOUBLE, out.data(), n, MPI_DOUBLE, MPI_COMM_WORLD); });
+  comm_stats().bytes += x.size() * sizeof(double);
+  return out;
+}
+
+double sum_in_rank_order(double x) {
+  if (ranks() == 1) return x;
+  double total = 0;
+  for (double part : all_gather(x)) total += part;
+  return total;
 }
 
 std::vector<std::uint64_t> all_gather(std::uint64_t x) {

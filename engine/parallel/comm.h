@@ -50,6 +50,8 @@ double max_all(double x);
 double sum_all(double x);
 /// Sum over all ranks.
 std::uint64_t sum_all(std::uint64_t x);
+/// Element-wise sum over all ranks (every rank passes the same size), on every rank.
+std::vector<std::uint64_t> sum_all(std::vector<std::uint64_t> x);
 /// True if `x` is true on any rank.
 bool any_all(bool x);
 /// Rank 0's value of `x` on every rank.
@@ -63,6 +65,11 @@ void broadcast(int& x);
 std::string first_nonempty(const std::string& local);
 /// Every rank's value, in rank order, on every rank.
 std::vector<double> all_gather(double x);
+/// Every rank's `x` (the same size on every rank), concatenated in rank order, on every rank.
+std::vector<double> all_gather(const std::vector<double>& x);
+/// Sum over all ranks added in rank order (0, 1, ...) on every rank: the same bits every run
+/// for the same partial values, whatever MPI's reduction tree.
+double sum_in_rank_order(double x);
 /// Every rank's value, in rank order, on every rank.
 std::vector<std::uint64_t> all_gather(std::uint64_t x);
 

@@ -289,16 +289,13 @@ void Domain::keep_root_only(Simulation& sim) {
 
 void Domain::distribute(Simulation& sim) {
   const int n = ranks();
-  // Rank 0 holds every particle: it balances the slabs on their base layers.
-  std::vector<int> bounds;
-  if (rank() == 0) {
-    std::vector<std::uint64_t> per_layer(sim.grid().blocks[slabs_.axis], 0);
-    for (int l : base_layers(sim, slabs_.axis))
-      ++per_layer[std::clamp(l, 0, static_cast<int>(per_layer.size()) - 1)];
-    bounds = balanced_slabs(per_layer, n, slabs_.axis).first_layer;
-  }
-  broadcast(bounds);
-  slabs_.first_layer = bounds;
+  // The particle count per base layer over all ranks (wherever the particles are: on rank 0
+  // after collect(), or on their slabs), the same slabs on every rank, and each particle
+  // moved to its new owner by the migration exchange.
+  std::vector<std::uint64_t> per_layer(sim.grid().blocks[slabs_.axis], 0);
+  for (int l : base_layers(sim, slabs_.axis))
+    ++per_layer[std::clamp(l, 0, static_cast<int>(per_layer.size()) - 1)];
+  slabs_.first_layer = balanced_slabs(sum_all(std::move(per_layer)), n, slabs_.axis).first_layer;
   exchange(sim, owners(sim));
   // Load balance of this frame: max / mean particles per rank.
   stats_.particles = all_gather(static_cast<std::uint64_t>(sim.particles().size()));
@@ -313,6 +310,10 @@ void Domain::distribute(Simulation& sim) {
 
 void Domain::collect(Simulation& sim) {
   exchange(sim, std::vector<int>(sim.particles().size(), 0));
+  collect_counters(sim);
+}
+
+void Domain::collect_counters(Simulation& sim) {
   const Real work = sum_all(static_cast<double>(sim.wall_work()));
   const std::uint64_t clamped = sum_all(static_cast<std::uint64_t>(sim.clamped_particles()));
   if (rank() == 0)

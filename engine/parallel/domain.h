@@ -72,12 +72,17 @@ class Domain {
   /// At the start of a run every rank holds the whole state (built or restored the same way):
   /// ranks other than 0 drop their particles, so the state is as after collect().
   void keep_root_only(Simulation& sim);
-  /// Frame start: rank 0 (holding every particle) chooses balanced slabs and sends each rank
-  /// its particles. Rebalancing is thus every frame, at the cost of one gather and scatter.
+  /// Frame start: balanced slabs from the particle count per block layer summed over the
+  /// ranks (one reduction of a layer-sized array), then every particle goes to its new owner
+  /// by the migration exchange. Works wherever the particles are (all on rank 0 after
+  /// collect(), or spread over slabs). Called every frame, after the frame's gather.
   void distribute(Simulation& sim);
   /// Frame end: every particle, material state, wall work and clamp count goes to rank 0, in
   /// rank order per object, so rank 0 checks and writes the frame as a one-rank run does.
   void collect(Simulation& sim);
+  /// Frame end without the gather: only collect()'s totals (wall work, clamp count on rank 0)
+  /// and counters, when no observer reads every particle on rank 0.
+  void collect_counters(Simulation& sim);
 
   /// Why a compute stage failed on this rank ("" if none): its later compute stages are then
   /// skipped, its exchanges still run, and run_frames stops every rank after the substep.

@@ -487,16 +487,22 @@ int cmd_run(const Args& args) {
   if (args.command == "golden") observers = {&golden};
   else observers = {&output, &summary};
   if (!args.quiet) observers.push_back(&progress);
-  if (!root) observers.clear();  // rank 0 holds every particle at each frame end
+  // Rank 0 holds every particle after each frame's gather; a collective observer (the
+  // summary) reduces over every rank's particles before it, so it runs on every rank.
+  if (!root) std::erase_if(observers, [](const mpm::Observer* o) { return !o->collective(); });
   const mpm::RunResult r =
       mpm::run_frames(*sim, frames, scene.simulation.frame_dt, observers, &g_stop,
                       resumed_frame + 1);
 
-  const double steps = static_cast<double>(sim->particles().size()) * sim->substeps();
+  // Each rank's own particles when no observer needed the frame's gather: count over the ranks.
+  const std::size_t particles =
+      sim->domain() ? mpm::parallel::sum_all(static_cast<std::uint64_t>(sim->particles().size()))
+                    : sim->particles().size();
+  const double steps = static_cast<double>(particles) * sim->substeps();
   if (!root) return r.status == "ok" ? mpm::kExitOk : mpm::kExitRunFailed;
   std::printf("%s: %s, %zu particles, %d frames, %zu substeps in %.1f s (%.2fM particle-steps/s; "
               "%.2fM in the substep loop); %s%s\n",
-              args.scene.c_str(), r.status.c_str(), sim->particles().size(), r.frames_done,
+              args.scene.c_str(), r.status.c_str(), particles, r.frames_done,
               sim->substeps(), r.wall_seconds,
               r.wall_seconds > 0 ? steps / r.wall_seconds / 1e6 : 0.0,
               r.loop_seconds > 0 ? steps / r.loop_seconds / 1e6 : 0.0, written.c_str(),

@@ -11,6 +11,7 @@ Progress::Progress(bool live) : live_(live) {}
 void Progress::on_start(const Simulation& sim, int frames) {
   frames_ = frames;
   start_substeps_ = sim.substeps();
+  particles_ = sim.particles().size();  // all on rank 0 here; the count never changes
   start_ = last_draw_ = std::chrono::steady_clock::now();
 }
 
@@ -18,7 +19,7 @@ std::string Progress::line(const Simulation& sim, int frame) const {
   const double elapsed =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   const double steps = static_cast<double>(sim.substeps() - start_substeps_);
-  const double rate = elapsed > 0 ? steps * sim.particles().size() / elapsed : 0;
+  const double rate = elapsed > 0 ? steps * particles_ / elapsed : 0;
   const double done = frames_ > 0 ? static_cast<double>(frame) / frames_ : 1;
   const double left = done > 0 ? elapsed * (1 - done) / done : 0;
   char buf[200];

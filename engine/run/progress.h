@@ -16,12 +16,15 @@ class Progress : public Observer {
   void on_substep(const Simulation& sim, int frame) override;
   void on_frame(const Simulation& sim, int frame) override;
   void on_finish(const Simulation& sim, const RunResult& result) override;
+  /// Reads only the time, the substep count and the particle count from on_start.
+  bool reads_all_particles() const override { return false; }
 
  private:
   std::string line(const Simulation& sim, int frame) const;
   bool live_;
   int frames_ = 0;
   std::size_t start_substeps_ = 0;
+  std::size_t particles_ = 0;
   std::chrono::steady_clock::time_point start_, last_draw_;
 };
 

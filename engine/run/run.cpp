@@ -38,9 +38,18 @@ std::optional<Instability> diagnose(const Simulation& sim, Real dt) {
   return std::nullopt;
 }
 
+/// `local` (this rank's part of a sum over particles or of the wall work) summed over all
+/// ranks in rank order, so no particle leaves its rank; a one-rank run makes no MPI call.
+Real over_ranks(const Simulation& sim, Real local) {
+  if (!sim.domain()) return local;
+  return static_cast<Real>(parallel::sum_in_rank_order(static_cast<double>(local)));
+}
+
 /// Appends a warning for each object not yet warned about that has a particle with
 /// J = det F <= 0 (inverted: no elastic material survives it) at the end of `frame`. Once per
-/// frame, one determinant per particle: cheap beside the frame's substeps.
+/// frame, one determinant per particle: cheap beside the frame's substeps. With more than one
+/// rank each rank counts its own particles; the counts and the smallest J are then reduced
+/// (collective: every rank calls it, and every rank gets the same flags).
 void check_inversion(const Simulation& sim, int frame, std::vector<char>& warned,
                      std::vector<std::string>& warnings) {
   const Particles& p = sim.particles();
@@ -67,15 +76,22 @@ void check_inversion(const Simulation& sim, int frame, std::vector<char>& warned
         [](Inverted a, Inverted b) {
           return Inverted{a.count + b.count, std::min(a.smallest, b.smallest)};
         });
-    if (inv.count == 0) continue;
+    std::size_t inverted = inv.count, count = info.count;
+    Real smallest = inv.smallest;
+    if (sim.domain()) {
+      inverted = parallel::sum_all(static_cast<std::uint64_t>(inverted));
+      count = parallel::sum_all(static_cast<std::uint64_t>(count));
+      smallest = static_cast<Real>(parallel::min_all(static_cast<double>(smallest)));
+    }
+    if (inverted == 0) continue;
     warned[o] = 1;
+    if (parallel::rank() != 0) continue;
     char buf[400];
     std::snprintf(buf, sizeof buf,
                   "object '%s': %zu of %zu particles inverted (J = det F <= 0, smallest %.3g) "
                   "by frame %d: the body was crushed beyond what its material can hold, and "
                   "what follows is not physical (E is in Pa: too small? dt too large?)",
-                  info.name.c_str(), inv.count, info.count,
-                  static_cast<double>(inv.smallest), frame);
+                  info.name.c_str(), inverted, count, static_cast<double>(smallest), frame);
     warnings.emplace_back(buf);
     spdlog::warn("{}", warnings.back());
   }
@@ -92,7 +108,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
   result.dt_min = std::numeric_limits<Real>::infinity();
   const bool adaptive = sim.scene().simulation.cfl.has_value();
   if (sim.domain()) sim.domain()->keep_root_only(sim);
-  result.energy_start = result.energy_max = sim.total_energy();
+  result.energy_start = result.energy_max = over_ranks(sim, sim.total_energy());
   // The dt to suggest if the run goes wrong: the CFL bound at cfl 0.5, from the last healthy
   // state seen at a frame end.
   const Real cfl = 0.5;
@@ -114,8 +130,9 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
     return std::chrono::duration<double>(clock::now() - t0).count();
   };
   // With more than one rank (engine/parallel/domain.h) the substeps run on every rank's
-  // slab, and each frame end gathers the state on rank 0, which alone checks it and calls
-  // the observers (other ranks get none); rank 0's status is then every rank's.
+  // slab; each frame end checks energy and inversion with reductions over the slabs, then
+  // gathers the state on rank 0, which alone calls the observers (other ranks get none);
+  // rank 0's status is then every rank's.
   parallel::Domain* domain = sim.domain();
   auto agree = [&] {
     if (!domain) return;
@@ -131,6 +148,11 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       if (result.status == "ok") result.status = "error", result.message = e.what();
     }
   };
+  // The frame's gather to rank 0 only when an observer there reads every particle (rank 0's
+  // list decides: other ranks hold only collective observers).
+  bool gather = false;
+  for (const Observer* o : observers) gather = gather || o->reads_all_particles();
+  if (domain) gather = parallel::any_all(gather);
   try {
     auto t0 = clock::now();
     notify([&] {
@@ -212,33 +234,55 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       }
       if (steps.substeps == 0) steps.dt_min = 0;
       result.steps.push_back(steps);
-      if (domain) domain->collect(sim);
-      if (result.status != "ok") break;
-      // Energy may only grow by the work moving walls and colliders do on the bodies.
-      t0 = clock::now();
-      const Real energy = sim.total_energy() - sim.wall_work();
-      result.energy_max = std::max(result.energy_max, energy);
-      // The allowance scales with the energy in play: the start's, or what walls put in.
-      const Real scale = std::max(std::abs(result.energy_start), std::abs(sim.wall_work()));
-      if (energy > result.energy_start + kEnergyGrowthLimit * scale + 1e-9 &&
-          parallel::rank() == 0) {
-        char buf[200];
-        std::snprintf(
-            buf, sizeof buf,
-            "total energy less the work of moving walls and colliders grew from %.4g J to %.4g J",
-            static_cast<double>(result.energy_start), static_cast<double>(energy));
-        fail({buf, ""}, f);
+      // The frame's checks run on each rank's own particles, with reductions (the status is
+      // the same on every rank here: each way out of the substep loop is agreed).
+      if (result.status == "ok") {
+        // Energy may only grow by the work moving walls and colliders do on the bodies.
+        t0 = clock::now();
+        const Real wall_work = over_ranks(sim, sim.wall_work());
+        const Real energy = sim.domain() ? over_ranks(sim, sim.total_energy()) - wall_work
+                                         : sim.total_energy() - sim.wall_work();
+        result.energy_max = std::max(result.energy_max, energy);
+        // The allowance scales with the energy in play: the start's, or what walls put in.
+        const Real scale = std::max(std::abs(result.energy_start), std::abs(wall_work));
+        if (energy > result.energy_start + kEnergyGrowthLimit * scale + 1e-9) {
+          char buf[200];
+          std::snprintf(
+              buf, sizeof buf,
+              "total energy less the work of moving walls and colliders grew from %.4g J to %.4g J",
+              static_cast<double>(result.energy_start), static_cast<double>(energy));
+          fail({buf, ""}, f);
+        }
+        agree();
+        if (result.status == "ok") {
+          check_inversion(sim, f, inversion_warned, result.warnings);
+          suggested_dt = sim.cfl_bound(cfl);
+        }
+        result.check_seconds += seconds_since(t0);
       }
-      agree();
+      // Collective observers (the summary) reduce over the slabs before the gather; the others
+      // (frame files, checkpoint, progress) still read every particle on rank 0 after it.
+      if (domain && result.status == "ok") {
+        t0 = clock::now();
+        sim.set_time(frame_end);
+        notify([&] {
+          for (Observer* o : observers)
+            if (o->collective()) o->on_frame(sim, f);
+        });
+        result.observer_seconds += seconds_since(t0);
+        agree();  // an observer's error on rank 0 stops every rank after the gather
+      }
+      if (domain && gather) domain->collect(sim);
+      else if (domain) domain->collect_counters(sim);
       if (result.status != "ok") break;
-      check_inversion(sim, f, inversion_warned, result.warnings);
-      suggested_dt = sim.cfl_bound(cfl);
-      result.check_seconds += seconds_since(t0);
       sim.set_time(frame_end);
       result.frames_done = f;
       t0 = clock::now();
       notify([&] {
-        for (Observer* o : observers) o->on_frame(sim, f);
+        for (Observer* o : observers) {
+          if (!domain || !o->collective()) o->on_frame(sim, f);
+          else if (o->reads_all_particles()) o->on_frame_gathered(sim, f);
+        }
       });
       result.observer_seconds += seconds_since(t0);
       agree();

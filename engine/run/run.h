@@ -58,6 +58,17 @@ class Observer {
   virtual void on_frame(const Simulation& sim, int frame) {}
   /// Once at the end, whatever the status.
   virtual void on_finish(const Simulation& sim, const RunResult& result) {}
+  /// True for an observer whose frame-end work is a reduction (engine/parallel/comm.h): with
+  /// more than one rank it is called on every rank with the rank's own particles, before the
+  /// frame's gather, and writes on rank 0 only. Others are called on rank 0 after the gather.
+  virtual bool collective() const { return false; }
+  /// True if on_frame (or, for a collective observer, on_frame_gathered) reads every particle
+  /// on rank 0, so that with more than one rank each frame ends with the gather to rank 0
+  /// (without such an observer it is skipped).
+  virtual bool reads_all_particles() const { return !collective(); }
+  /// With more than one rank, after the frame's gather, on every rank, for a collective
+  /// observer that reads_all_particles (rank 0 then holds every particle).
+  virtual void on_frame_gathered(const Simulation& sim, int frame) {}
 };
 
 /// Total energy less wall work may not exceed its start by more than this fraction of the

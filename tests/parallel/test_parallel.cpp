@@ -2,24 +2,33 @@
 // against one rank: frames equal to round-off, repeated runs bit-identical, bad input exits 2
 // on every rank without a hang, a checkpoint resumed on another number of ranks (both ways),
 // and a rank failing mid-substep stopping every rank with the cause in report.yaml.
+#include <hdf5.h>
 #include <sys/wait.h>
+#include <yaml-cpp/yaml.h>
 
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <string>
+#include <utility>
 
 #include "engine/io/output.h"
 #include "engine/io/summary.h"
 #include "engine/parallel/domain.h"
+#include "engine/parallel/frame_hdf5.h"
 #include "support/helpers.h"
 
 namespace fs = std::filesystem;
 using namespace mpm;
 
 namespace {
+
+/// The frame-end energies of two ranks against one, relative to the start's: round-off of
+/// sums over 1e5 particles and of the states compared below.
+constexpr double kRelativeEnergyBound = 1e-6;
 
 /// Runs `mpm ARGS` on `ranks` ranks (1: without mpirun) with one thread each and the
 /// environment settings `env` ("NAME=value "); exit code.
@@ -66,6 +75,13 @@ Agreement worst_diff(const fs::path& a, const fs::path& b, int last) {
   return worst;
 }
 
+/// energy_start and energy_max of a run's report.yaml, J (with more than one rank: sums of
+/// each rank's part, added in rank order).
+std::pair<double, double> report_energies(const fs::path& dir) {
+  const YAML::Node r = YAML::LoadFile((dir / "report.yaml").string());
+  return {r["energy_start"].as<double>(), r["energy_max"].as<double>()};
+}
+
 /// `scene` for `frames` frames on 1 and 2 ranks; the worst frame difference between them.
 Agreement one_against_two(const std::string& name, const std::string& scene,
                           const std::string& sets, int frames) {
@@ -82,6 +98,13 @@ Agreement one_against_two(const std::string& name, const std::string& scene,
                               (dir / "one").string() + " > " + (dir / "compare.log").string() +
                               " 2>&1";
   CHECK(std::system(compare.c_str()) == 0);
+  // The frame-end energies are reductions over the ranks' own particles: the same sums added
+  // in another order, and states that differ by the round-off bounded below.
+  const auto [start1, max1] = report_energies(dir / "one");
+  const auto [start2, max2] = report_energies(dir / "two");
+  INFO("energy_start " << start1 << " / " << start2 << " J, energy_max " << max1 << " / " << max2);
+  CHECK(std::abs(start2 - start1) <= kRelativeEnergyBound * std::abs(start1));
+  CHECK(std::abs(max2 - max1) <= kRelativeEnergyBound * std::abs(start1));
   return worst_diff(dir / "one", dir / "two", frames);
 }
 
@@ -155,6 +178,70 @@ TEST_CASE("two ranks: the velocity bound scales with the scene's speed (fast sno
   check_round_off(one_against_two("snowball_paper", "scenes/snowball_paper.yaml", "", 1));
 }
 
+TEST_CASE("two ranks write the one-rank HDF5 frame file, ids 0..N-1 in order", "[parallel]") {
+  // HDF5 the only output and no checkpoint: with MPM_PARALLEL_HDF5 each rank writes its own
+  // particles at their id rows (no gather); otherwise rank 0 writes the gathered frame.
+  const fs::path dir = test::temp_dir("parallel_collective_hdf5");
+  const std::string common = "run " + (test::source_dir() / "scenes/two_cubes.yaml").string() +
+                             " --frames 2 --set grid.dims=48 --set objects[0].particles_per_cell=4"
+                             " --set objects[1].particles_per_cell=4 --set output.checkpoint=false"
+                             " --force --out ";
+  REQUIRE(run_mpm(1, common + (dir / "one").string(), dir / "one.log") == 0);
+  INFO(read_text(dir / "two.log"));
+  REQUIRE(run_mpm(2, common + (dir / "two").string(), dir / "two.log") == 0);
+  const YAML::Node report = YAML::LoadFile((dir / "two" / "report.yaml").string());
+  CHECK(report["collective_hdf5"].as<bool>() == parallel::collective_hdf5());
+  CHECK(report["particles"].as<std::size_t>() ==
+        YAML::LoadFile((dir / "one" / "report.yaml").string())["particles"].as<std::size_t>());
+  for (int f = 0; f <= 2; ++f) {
+    INFO("frame " << f);
+    const FrameData one = read_frame_hdf5(frame_path(dir / "one", f));
+    const FrameData two = read_frame_hdf5(frame_path(dir / "two", f));
+    REQUIRE(two.size() == one.size());
+    bool in_order = true;
+    for (std::size_t q = 0; q < two.size(); ++q) in_order = in_order && two.id[q] == q;
+    CHECK(in_order);
+    CHECK(two.object_id == one.object_id);
+    CHECK(two.time == one.time);
+    CHECK(two.frame == f);
+    // Frame 0 is the sampled state, written before any substep: the same values exactly.
+    if (f == 0) {
+      CHECK(two.position == one.position);
+      CHECK(two.velocity == one.velocity);
+      CHECK(two.J == one.J);
+    }
+    // The same datasets with the same file types and shapes as the one-rank writer's.
+    const hid_t a = H5Fopen(frame_path(dir / "one", f).c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    const hid_t b = H5Fopen(frame_path(dir / "two", f).c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    REQUIRE(a >= 0);
+    REQUIRE(b >= 0);
+    H5G_info_t links_a, links_b;
+    REQUIRE(H5Gget_info(a, &links_a) >= 0);
+    REQUIRE(H5Gget_info(b, &links_b) >= 0);
+    CHECK(links_b.nlinks == links_a.nlinks);
+    H5O_info_t object_a, object_b;
+    REQUIRE(H5Oget_info2(a, &object_a, H5O_INFO_NUM_ATTRS) >= 0);
+    REQUIRE(H5Oget_info2(b, &object_b, H5O_INFO_NUM_ATTRS) >= 0);
+    CHECK(object_b.num_attrs == object_a.num_attrs);
+    for (const char* name : {"position", "velocity", "object_id", "J", "id"}) {
+      INFO(name);
+      const hid_t da = H5Dopen2(a, name, H5P_DEFAULT), db = H5Dopen2(b, name, H5P_DEFAULT);
+      const hid_t ta = H5Dget_type(da), tb = H5Dget_type(db);
+      CHECK(H5Tequal(ta, tb) > 0);
+      const hid_t sa = H5Dget_space(da), sb = H5Dget_space(db);
+      hsize_t dims_a[2] = {0, 0}, dims_b[2] = {0, 0};
+      CHECK(H5Sget_simple_extent_dims(sb, dims_b, nullptr) ==
+            H5Sget_simple_extent_dims(sa, dims_a, nullptr));
+      CHECK((dims_a[0] == dims_b[0] && dims_a[1] == dims_b[1]));
+      H5Sclose(sa), H5Sclose(sb), H5Tclose(ta), H5Tclose(tb), H5Dclose(da), H5Dclose(db);
+    }
+    H5Fclose(a);
+    H5Fclose(b);
+  }
+  // Later frames: the stated round-off bound of two ranks against one.
+  check_round_off(worst_diff(dir / "one", dir / "two", 2));
+}
+
 TEST_CASE("two runs on two ranks are bit-identical", "[parallel]") {
   const fs::path dir = test::temp_dir("parallel_repeat");
   const std::string common = "run " + (test::source_dir() / "scenes/two_cubes.yaml").string() +
@@ -166,6 +253,10 @@ TEST_CASE("two runs on two ranks are bit-identical", "[parallel]") {
   CHECK(d.max_position == 0);
   CHECK(d.max_velocity == 0);
   CHECK(d.max_J == 0);
+  // The frame-end energy check's reductions add the ranks' parts in rank order.
+  CHECK(report_energies(dir / "a") == report_energies(dir / "b"));
+  // So do the summary's per-object statistics, each rank summing its own particles.
+  CHECK(read_text(dir / "a" / "summary.yaml") == read_text(dir / "b" / "summary.yaml"));
 }
 
 TEST_CASE("more ranks than slabs: an error on rank 0 and exit 2 on every rank", "[parallel]") {
@@ -247,4 +338,41 @@ TEST_CASE("a rank that fails mid-substep stops every rank with the cause in the 
   CHECK(first.frame == 1);
   CHECK_FALSE(fs::exists(frame_path(out, 2)));
   CHECK_FALSE(fs::exists(out / "frame_00002.h5.tmp"));
+}
+
+TEST_CASE("two ranks: the inversion warning counts every rank's particles", "[parallel]") {
+  // A 0.3 m cube of E = 10 Pa dropped on a floor flattens through itself (the one-rank case
+  // is in tests/regression/test_summary.cpp); its particles lie on both ranks' slabs.
+  const fs::path dir = test::temp_dir("parallel_inversion");
+  const fs::path scene = dir / "soft.yaml";
+  std::ofstream(scene) << "simulation:\n  frames: 20\n  frame_dt: 0.04\n  dt: 1.0e-3\n"
+                          "grid:\n  max: [1, 1, 1]\n  dims: 20\n"
+                          "objects:\n  - name: soft\n    mesh: "
+                       << test::cube_mesh()
+                       << "\n    scale: 0.3\n    offset: [0.5, 0.7, 0.5]\n    density: 1000\n"
+                          "    material: corotated\n    E: 10\n    nu: 0.3\n"
+                          "walls:\n  - plane: {point: [0, 0.15, 0], normal: [0, 1, 0]}\n"
+                          "    boundary: separate\n";
+  const std::string common = "run " + scene.string() + " --force --out ";
+  REQUIRE(run_mpm(1, common + (dir / "one").string(), dir / "one.log") == 0);
+  INFO(read_text(dir / "two.log"));
+  REQUIRE(run_mpm(2, common + (dir / "two").string(), dir / "two.log") == 0);
+  const YAML::Node one = YAML::LoadFile((dir / "one" / "report.yaml").string());
+  const YAML::Node two = YAML::LoadFile((dir / "two" / "report.yaml").string());
+  REQUIRE(two["particles_per_rank"].size() == 2);
+  CHECK(two["particles_per_rank"][0].as<std::uint64_t>() > 0);
+  CHECK(two["particles_per_rank"][1].as<std::uint64_t>() > 0);
+  REQUIRE(one["warnings"].size() == 1);
+  REQUIRE(two["warnings"].size() == 1);
+  const std::string w1 = one["warnings"][0].as<std::string>();
+  const std::string w2 = two["warnings"][0].as<std::string>();
+  INFO(w1 << "\n" << w2);
+  // The same object, total particle count and frame: the counts and the smallest J are reduced
+  // over the ranks, not taken from one rank's slab.
+  const std::regex form("object 'soft': \\d+ of (\\d+) particles inverted .* by frame (\\d+):");
+  std::smatch m1, m2;
+  REQUIRE(std::regex_search(w1, m1, form));
+  REQUIRE(std::regex_search(w2, m2, form));
+  CHECK(m2[1].str() == m1[1].str());
+  CHECK(m2[2].str() == m1[2].str());
 }
