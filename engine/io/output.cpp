@@ -5,6 +5,7 @@
 #include "engine/parallel/frame_hdf5.h"
 
 #include "engine/io/atomic_file.h"
+#include "engine/io/hdf5_handle.h"
 
 #include "engine/io/bgeo.h"
 #include "engine/io/ply.h"
@@ -28,44 +29,24 @@ namespace mpm {
 
 namespace {
 
-/// Closes an HDF5 handle when it goes out of scope.
-struct H5Handle {
-  hid_t id;
-  herr_t (*close)(hid_t);
-  ~H5Handle() {
-    if (id >= 0) close(id);
-  }
-};
-
 /// Errors are reported through exceptions; keep HDF5 from printing its own error stack.
 void quiet_hdf5() {
   static const bool done = [] { return H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr) >= 0; }();
   (void)done;
 }
 
-void check(herr_t status, const std::string& what) {
-  if (status < 0) throw std::runtime_error("HDF5: cannot write " + what);
-}
-
 void write_dataset(hid_t file, const char* name, hid_t file_type, hid_t mem_type, int rank,
                    const hsize_t* dims, const void* data) {
-  H5Handle space{H5Screate_simple(rank, dims, nullptr), H5Sclose};
+  hdf5::Handle space{H5Screate_simple(rank, dims, nullptr), H5Sclose};
   // No modification times in object headers: the same state gives byte-identical files.
-  H5Handle props{H5Pcreate(H5P_DATASET_CREATE), H5Pclose};
+  hdf5::Handle props{H5Pcreate(H5P_DATASET_CREATE), H5Pclose};
   H5Pset_obj_track_times(props.id, false);
-  H5Handle set{H5Dcreate2(file, name, file_type, space.id, H5P_DEFAULT, props.id, H5P_DEFAULT),
+  hdf5::Handle set{H5Dcreate2(file, name, file_type, space.id, H5P_DEFAULT, props.id, H5P_DEFAULT),
                H5Dclose};
   if (set.id < 0) throw std::runtime_error(std::string("HDF5: cannot create dataset ") + name);
   if (dims[0] > 0) check(H5Dwrite(set.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), name);
 }
 
-template <class T>
-void write_attribute(hid_t file, const char* name, hid_t file_type, hid_t mem_type, T value) {
-  H5Handle space{H5Screate(H5S_SCALAR), H5Sclose};
-  H5Handle attr{H5Acreate2(file, name, file_type, space.id, H5P_DEFAULT, H5P_DEFAULT), H5Aclose};
-  if (attr.id < 0) throw std::runtime_error(std::string("HDF5: cannot create attribute ") + name);
-  check(H5Awrite(attr.id, mem_type, &value), name);
-}
 
 }  // namespace
 
@@ -117,7 +98,7 @@ void write_frame_hdf5(const std::filesystem::path& file, const FrameView& view) 
   quiet_hdf5();
   const std::filesystem::path tmp = temporary_path(file);
   {
-    H5Handle f{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose};
+    hdf5::Handle f{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose};
     if (f.id < 0) throw std::runtime_error("cannot create frame file '" + tmp.string() + "'");
     const hsize_t d2[2] = {n, 3}, d1[1] = {n};
     write_dataset(f.id, "position", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, 2, d2, pos.data());
@@ -136,9 +117,9 @@ namespace {
 
 template <class T>
 std::vector<T> read_dataset(hid_t file, const char* name, hid_t mem_type, std::size_t width) {
-  H5Handle set{H5Dopen2(file, name, H5P_DEFAULT), H5Dclose};
+  hdf5::Handle set{H5Dopen2(file, name, H5P_DEFAULT), H5Dclose};
   if (set.id < 0) throw std::runtime_error(std::string("HDF5: no dataset ") + name);
-  H5Handle space{H5Dget_space(set.id), H5Sclose};
+  hdf5::Handle space{H5Dget_space(set.id), H5Sclose};
   const hssize_t count = H5Sget_simple_extent_npoints(space.id);
   if (count < 0) throw std::runtime_error(std::string("HDF5: bad dataset ") + name);
   std::vector<T> out(static_cast<std::size_t>(count));
@@ -150,7 +131,7 @@ std::vector<T> read_dataset(hid_t file, const char* name, hid_t mem_type, std::s
 
 template <class T>
 T read_attribute(hid_t file, const char* name, hid_t mem_type) {
-  H5Handle attr{H5Aopen(file, name, H5P_DEFAULT), H5Aclose};
+  hdf5::Handle attr{H5Aopen(file, name, H5P_DEFAULT), H5Aclose};
   T value{};
   if (attr.id < 0 || H5Aread(attr.id, mem_type, &value) < 0)
     throw std::runtime_error(std::string("HDF5: cannot read attribute ") + name);
@@ -161,7 +142,7 @@ T read_attribute(hid_t file, const char* name, hid_t mem_type) {
 
 FrameData read_frame_hdf5(const std::filesystem::path& file) {
   quiet_hdf5();
-  H5Handle f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+  hdf5::Handle f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
   if (f.id < 0) throw std::runtime_error("cannot open frame file '" + file.string() + "'");
   FrameData d;
   d.position = read_dataset<float>(f.id, "position", H5T_NATIVE_FLOAT, 3);
@@ -243,7 +224,7 @@ void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, 
   const std::filesystem::path tmp = temporary_path(file);
   const Particles& p = sim.particles();
   {
-    H5Handle f{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose};
+    hdf5::Handle f{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose};
     if (f.id < 0) throw std::runtime_error("cannot create checkpoint '" + tmp.string() + "'");
     write_rows(f.id, "x", p.x, 3);
     write_rows(f.id, "v", p.v, 3);
@@ -272,7 +253,7 @@ void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, 
 
 int restore_checkpoint(const std::filesystem::path& file, Simulation& sim) {
   quiet_hdf5();
-  H5Handle f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+  hdf5::Handle f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
   if (f.id < 0) throw std::runtime_error("cannot open checkpoint '" + file.string() + "'");
   // A float build's F and C would be widened or rounded by a double build and the other way
   // round: not the run that was stopped, so refuse.

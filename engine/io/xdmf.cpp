@@ -1,6 +1,7 @@
 #include "engine/io/xdmf.h"
 
 #include "engine/io/atomic_file.h"
+#include "engine/io/hdf5_handle.h"
 
 #include <algorithm>
 #include <charconv>
@@ -62,15 +63,6 @@ std::string data_item(const std::string& dims, const std::string& type, int byte
          xml_escape(dataset) + "</DataItem>\n";
 }
 
-/// Closes an HDF5 handle when it goes out of scope.
-struct H5Handle {
-  hid_t id;
-  herr_t (*close)(hid_t);
-  ~H5Handle() {
-    if (id >= 0) close(id);
-  }
-};
-
 /// A node attribute: a dataset of the frame files with one row per particle.
 struct AttributeSpec {
   std::string name;  ///< Dataset and attribute name.
@@ -94,7 +86,7 @@ std::vector<AttributeSpec> frame_attributes(const std::filesystem::path& file, h
   H5Eget_auto2(H5E_DEFAULT, &old_func, &old_data);
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   {
-    H5Handle f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+    hdf5::Handle f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
     H5G_info_t info{};
     if (f.id >= 0 && H5Gget_info(f.id, &info) >= 0) {
       for (hsize_t k = 0; k < info.nlinks; ++k) {
@@ -103,10 +95,10 @@ std::vector<AttributeSpec> frame_attributes(const std::filesystem::path& file, h
                                                   sizeof name, H5P_DEFAULT);
         if (length <= 0 || length >= static_cast<ssize_t>(sizeof name)) continue;
         if (std::string(name) == "position") continue;
-        H5Handle set{H5Dopen2(f.id, name, H5P_DEFAULT), H5Dclose};
+        hdf5::Handle set{H5Dopen2(f.id, name, H5P_DEFAULT), H5Dclose};
         if (set.id < 0) continue;
-        H5Handle space{H5Dget_space(set.id), H5Sclose};
-        H5Handle type{H5Dget_type(set.id), H5Tclose};
+        hdf5::Handle space{H5Dget_space(set.id), H5Sclose};
+        hdf5::Handle type{H5Dget_type(set.id), H5Tclose};
         hsize_t dims[3] = {0, 0, 0};
         const int rank = H5Sget_simple_extent_ndims(space.id);
         if (rank < 1 || rank > 2) continue;
@@ -146,11 +138,11 @@ bool holds_connectivity(const std::filesystem::path& file, std::size_t n) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   bool ok = false;
   {
-    H5Handle f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
-    H5Handle set{f.id >= 0 ? H5Dopen2(f.id, "connectivity", H5P_DEFAULT) : -1, H5Dclose};
+    hdf5::Handle f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+    hdf5::Handle set{f.id >= 0 ? H5Dopen2(f.id, "connectivity", H5P_DEFAULT) : -1, H5Dclose};
     if (set.id >= 0) {
-      H5Handle space{H5Dget_space(set.id), H5Sclose};
-      H5Handle type{H5Dget_type(set.id), H5Tclose};
+      hdf5::Handle space{H5Dget_space(set.id), H5Sclose};
+      hdf5::Handle type{H5Dget_type(set.id), H5Tclose};
       hsize_t dims[1] = {0};
       if (H5Sget_simple_extent_ndims(space.id) == 1 &&
           H5Sget_simple_extent_dims(space.id, dims, nullptr) == 1 && dims[0] == n &&
@@ -175,14 +167,14 @@ void write_connectivity(const std::filesystem::path& file, std::size_t n) {
   std::iota(values.begin(), values.end(), 0);
   const std::filesystem::path tmp = temporary_path(file);
   {
-    H5Handle f{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose};
+    hdf5::Handle f{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose};
     if (f.id < 0) throw std::runtime_error("cannot create '" + tmp.string() + "'");
     const hsize_t dims[1] = {n};
-    H5Handle space{H5Screate_simple(1, dims, nullptr), H5Sclose};
+    hdf5::Handle space{H5Screate_simple(1, dims, nullptr), H5Sclose};
     // No modification times: the same run gives byte-identical files.
-    H5Handle props{H5Pcreate(H5P_DATASET_CREATE), H5Pclose};
+    hdf5::Handle props{H5Pcreate(H5P_DATASET_CREATE), H5Pclose};
     H5Pset_obj_track_times(props.id, false);
-    H5Handle set{H5Dcreate2(f.id, "connectivity", H5T_STD_I32LE, space.id, H5P_DEFAULT,
+    hdf5::Handle set{H5Dcreate2(f.id, "connectivity", H5T_STD_I32LE, space.id, H5P_DEFAULT,
                             props.id, H5P_DEFAULT),
                  H5Dclose};
     if (set.id < 0 || (n > 0 && H5Dwrite(set.id, H5T_NATIVE_INT32, H5S_ALL, H5S_ALL,

@@ -11,6 +11,7 @@
 
 #include "engine/core/particles.h"
 #include "engine/io/atomic_file.h"
+#include "engine/io/hdf5_handle.h"
 #include "engine/parallel/comm.h"
 
 #ifdef H5_HAVE_PARALLEL
@@ -35,19 +36,6 @@ std::size_t write_frame_hdf5_collective(const std::filesystem::path&, const Part
 
 namespace {
 
-/// Closes an HDF5 handle when it goes out of scope.
-struct Handle {
-  hid_t id;
-  herr_t (*close)(hid_t);
-  ~Handle() {
-    if (id >= 0) close(id);
-  }
-};
-
-void check(herr_t status, const std::string& what) {
-  if (status < 0) throw std::runtime_error("parallel HDF5: cannot write " + what);
-}
-
 /// Rows [first, first + count) of a dataset, for this rank's particles in id order.
 struct Run {
   hsize_t first;
@@ -62,33 +50,25 @@ void write_rows(hid_t file, const char* name, hid_t file_type, hid_t mem_type, h
                 const void* data) {
   const int rank = width > 1 ? 2 : 1;
   const hsize_t dims[2] = {rows, width};
-  Handle space{H5Screate_simple(rank, dims, nullptr), H5Sclose};
+  hdf5::Handle space{H5Screate_simple(rank, dims, nullptr), H5Sclose};
   // As the one-rank writer: no modification times, so the same state gives the same file.
-  Handle props{H5Pcreate(H5P_DATASET_CREATE), H5Pclose};
+  hdf5::Handle props{H5Pcreate(H5P_DATASET_CREATE), H5Pclose};
   H5Pset_obj_track_times(props.id, false);
-  Handle set{H5Dcreate2(file, name, file_type, space.id, H5P_DEFAULT, props.id, H5P_DEFAULT),
-             H5Dclose};
+  hdf5::Handle set{H5Dcreate2(file, name, file_type, space.id, H5P_DEFAULT, props.id, H5P_DEFAULT),
+                   H5Dclose};
   if (set.id < 0) throw std::runtime_error(std::string("parallel HDF5: cannot create ") + name);
   if (rows == 0) return;
   H5Sselect_none(space.id);
   for (const Run& r : runs) {
     const hsize_t start[2] = {r.first, 0}, count[2] = {r.count, width};
-    check(H5Sselect_hyperslab(space.id, H5S_SELECT_OR, start, nullptr, count, nullptr), name);
+    hdf5::check(H5Sselect_hyperslab(space.id, H5S_SELECT_OR, start, nullptr, count, nullptr), name);
   }
   const hsize_t mem_dims[2] = {std::max<hsize_t>(local_rows, 1), width};
-  Handle memory{H5Screate_simple(rank, mem_dims, nullptr), H5Sclose};
+  hdf5::Handle memory{H5Screate_simple(rank, mem_dims, nullptr), H5Sclose};
   if (local_rows == 0) H5Sselect_none(memory.id);
-  Handle transfer{H5Pcreate(H5P_DATASET_XFER), H5Pclose};
-  check(H5Pset_dxpl_mpio(transfer.id, H5FD_MPIO_COLLECTIVE), name);
-  check(H5Dwrite(set.id, mem_type, memory.id, space.id, transfer.id, data), name);
-}
-
-template <class T>
-void write_attribute(hid_t file, const char* name, hid_t file_type, hid_t mem_type, T value) {
-  Handle space{H5Screate(H5S_SCALAR), H5Sclose};
-  Handle attr{H5Acreate2(file, name, file_type, space.id, H5P_DEFAULT, H5P_DEFAULT), H5Aclose};
-  if (attr.id < 0) throw std::runtime_error(std::string("parallel HDF5: cannot create ") + name);
-  check(H5Awrite(attr.id, mem_type, &value), name);
+  hdf5::Handle transfer{H5Pcreate(H5P_DATASET_XFER), H5Pclose};
+  hdf5::check(H5Pset_dxpl_mpio(transfer.id, H5FD_MPIO_COLLECTIVE), name);
+  hdf5::check(H5Dwrite(set.id, mem_type, memory.id, space.id, transfer.id, data), name);
 }
 
 }  // namespace
@@ -130,9 +110,9 @@ std::size_t write_frame_hdf5_collective(const std::filesystem::path& file, const
   const std::filesystem::path tmp = temporary_path(file);
   std::string why;
   try {
-    Handle access{H5Pcreate(H5P_FILE_ACCESS), H5Pclose};
-    check(H5Pset_fapl_mpio(access.id, MPI_COMM_WORLD, MPI_INFO_NULL), "the file access list");
-    Handle f{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, access.id), H5Fclose};
+    hdf5::Handle access{H5Pcreate(H5P_FILE_ACCESS), H5Pclose};
+    hdf5::check(H5Pset_fapl_mpio(access.id, MPI_COMM_WORLD, MPI_INFO_NULL), "the file access list");
+    hdf5::Handle f{H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, access.id), H5Fclose};
     if (f.id < 0) throw std::runtime_error("cannot create frame file '" + tmp.string() + "'");
     const hsize_t rows = n;
     write_rows(f.id, "position", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, rows, 3, runs, m, pos.data());
@@ -140,9 +120,9 @@ std::size_t write_frame_hdf5_collective(const std::filesystem::path& file, const
     write_rows(f.id, "object_id", H5T_STD_I32LE, H5T_NATIVE_INT, rows, 1, runs, m, object.data());
     write_rows(f.id, "J", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, rows, 1, runs, m, J.data());
     write_rows(f.id, "id", H5T_STD_U32LE, H5T_NATIVE_UINT32, rows, 1, runs, m, id.data());
-    write_attribute(f.id, "time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, time);
-    write_attribute(f.id, "frame", H5T_STD_I32LE, H5T_NATIVE_INT, frame);
-    check(H5Fflush(f.id, H5F_SCOPE_GLOBAL), "frame file");
+    hdf5::write_attribute(f.id, "time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, time);
+    hdf5::write_attribute(f.id, "frame", H5T_STD_I32LE, H5T_NATIVE_INT, frame);
+    hdf5::check(H5Fflush(f.id, H5F_SCOPE_GLOBAL), "frame file");
   } catch (const std::exception& e) {
     why = e.what();
   }
