@@ -29,6 +29,9 @@ namespace mpm {
 
 namespace {
 
+using hdf5::check;
+using hdf5::write_attribute;
+
 /// Errors are reported through exceptions; keep HDF5 from printing its own error stack.
 void quiet_hdf5() {
   static const bool done = [] { return H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr) >= 0; }();
