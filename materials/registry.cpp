@@ -59,12 +59,9 @@ MaterialInfo snow_info() {
           "Stomakhin et al. 2013, A material point method for snow simulation", params, true,
           [](const ParamValues& v, const GroupInfo& g) {
             const Lame l = lame_from_young(v.at("E"), v.at("nu"));
-            // Optional for callers that build ParamValues by hand (engine/tools/bench.cpp).
-            const auto s = v.find("initial_Jp_spread");
-            const Real spread = s == v.end() ? 0 : s->second;
-            const materials::SnowPlasticity plastic{v.at("critical_compression"),
-                                                    v.at("critical_stretch"), v.at("hardening"),
-                                                    v.at("min_Jp"), spread};
+            const materials::SnowPlasticity plastic{
+                v.at("critical_compression"), v.at("critical_stretch"), v.at("hardening"),
+                v.at("min_Jp"), v.at("initial_Jp_spread")};
             return std::make_unique<materials::SnowGroup>(
                 materials::FixedCorotated{l.mu, l.lambda}, plastic, g.density, g.count);
           }};
