@@ -23,6 +23,16 @@ inline void check(herr_t status, const std::string& what) {
   if (status < 0) throw std::runtime_error("HDF5: cannot write " + what);
 }
 
+/// Creates dataset `name` in `file` with no modification times in its header, so the same
+/// state gives the same file; the caller closes it. Throws when HDF5 cannot create it.
+inline hid_t create_dataset(hid_t file, const char* name, hid_t file_type, hid_t space) {
+  Handle props{H5Pcreate(H5P_DATASET_CREATE), H5Pclose};
+  H5Pset_obj_track_times(props.id, false);
+  const hid_t set = H5Dcreate2(file, name, file_type, space, H5P_DEFAULT, props.id, H5P_DEFAULT);
+  if (set < 0) throw std::runtime_error(std::string("HDF5: cannot create dataset ") + name);
+  return set;
+}
+
 /// Writes the scalar attribute `name` (stored as `file_type`) on `object`.
 template <class T>
 void write_attribute(hid_t object, const char* name, hid_t file_type, hid_t mem_type, T value) {

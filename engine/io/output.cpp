@@ -41,15 +41,9 @@ void quiet_hdf5() {
 void write_dataset(hid_t file, const char* name, hid_t file_type, hid_t mem_type, int rank,
                    const hsize_t* dims, const void* data) {
   hdf5::Handle space{H5Screate_simple(rank, dims, nullptr), H5Sclose};
-  // No modification times in object headers: the same state gives byte-identical files.
-  hdf5::Handle props{H5Pcreate(H5P_DATASET_CREATE), H5Pclose};
-  H5Pset_obj_track_times(props.id, false);
-  hdf5::Handle set{H5Dcreate2(file, name, file_type, space.id, H5P_DEFAULT, props.id, H5P_DEFAULT),
-               H5Dclose};
-  if (set.id < 0) throw std::runtime_error(std::string("HDF5: cannot create dataset ") + name);
+  hdf5::Handle set{hdf5::create_dataset(file, name, file_type, space.id), H5Dclose};
   if (dims[0] > 0) check(H5Dwrite(set.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), name);
 }
-
 
 }  // namespace
 

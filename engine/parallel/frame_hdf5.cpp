@@ -51,12 +51,7 @@ void write_rows(hid_t file, const char* name, hid_t file_type, hid_t mem_type, h
   const int rank = width > 1 ? 2 : 1;
   const hsize_t dims[2] = {rows, width};
   hdf5::Handle space{H5Screate_simple(rank, dims, nullptr), H5Sclose};
-  // As the one-rank writer: no modification times, so the same state gives the same file.
-  hdf5::Handle props{H5Pcreate(H5P_DATASET_CREATE), H5Pclose};
-  H5Pset_obj_track_times(props.id, false);
-  hdf5::Handle set{H5Dcreate2(file, name, file_type, space.id, H5P_DEFAULT, props.id, H5P_DEFAULT),
-                   H5Dclose};
-  if (set.id < 0) throw std::runtime_error(std::string("parallel HDF5: cannot create ") + name);
+  hdf5::Handle set{hdf5::create_dataset(file, name, file_type, space.id), H5Dclose};
   if (rows == 0) return;
   H5Sselect_none(space.id);
   for (const Run& r : runs) {
