@@ -205,12 +205,7 @@ Real apply_colliders(const std::vector<Collider>& colliders, Real time, Grid& g)
     moving = moving || poses.back().velocity.squaredNorm() > 0 ||
              poses.back().angular_velocity.squaredNorm() > 0;
   }
-  // Work per block, summed in order afterwards so the total is the same for any thread count.
-  std::vector<Real> work(g.active_blocks(), 0);
-  for_each_active_node(g, [&](int i, int j, int k, std::size_t idx) {
-    if (g.mass[idx] <= 0) return;
-    const Vec3 x = g.position(i, j, k);
-    Vec3 v = g.velocity[idx];
+  return constrain_nodes(g, [&](const Vec3& x, Vec3& v, Real m) {
     Real node_work = 0;
     for (std::size_t c = 0; c < colliders.size(); ++c) {
       const ColliderPose& p = poses[c];
@@ -229,15 +224,11 @@ Real apply_colliders(const std::vector<Collider>& colliders, Real time, Grid& g)
                                         colliders[c].friction))
               : vc;
       // The collider's impulse on the node times its velocity there: zero for one at rest.
-      if (moving) node_work += g.mass[idx] * (after - v).dot(vc);
+      if (moving) node_work += m * (after - v).dot(vc);
       v = after;
     }
-    g.velocity[idx] = v;
-    work[idx / Grid::kBlockNodes] += node_work;
+    return node_work;
   });
-  Real total = 0;
-  for (Real w : work) total += w;
-  return total;
 }
 
 }  // namespace mpm

@@ -72,12 +72,7 @@ Real apply_walls(const std::vector<WallPlane>& planes, Real time, Grid& g) {
     placed.push_back({w.point + w.offset(time), w.velocity_at(time)});
     moving = moving || placed.back().velocity.squaredNorm() > 0;
   }
-  // Work per block, summed in order afterwards so the total is the same for any thread count.
-  std::vector<Real> work(g.active_blocks(), 0);
-  for_each_active_node(g, [&](int i, int j, int k, std::size_t idx) {
-    if (g.mass[idx] <= 0) return;
-    const Vec3 x = g.position(i, j, k);
-    Vec3 v = g.velocity[idx];
+  return constrain_nodes(g, [&](const Vec3& x, Vec3& v, Real m) {
     Real node_work = 0;
     for (std::size_t w = 0; w < planes.size(); ++w) {
       const WallPlane& p = planes[w];
@@ -85,15 +80,11 @@ Real apply_walls(const std::vector<WallPlane>& planes, Real time, Grid& g) {
       if ((x - placed[w].point).dot(p.normal) > 0) continue;
       const Vec3 after = vw + wall_velocity(v - vw, p.normal, p.boundary, p.friction);
       // The wall's impulse on the node times the wall's velocity: zero for a wall at rest.
-      if (moving) node_work += g.mass[idx] * (after - v).dot(vw);
+      if (moving) node_work += m * (after - v).dot(vw);
       v = after;
     }
-    g.velocity[idx] = v;
-    work[idx / Grid::kBlockNodes] += node_work;
+    return node_work;
   });
-  Real total = 0;
-  for (Real w : work) total += w;
-  return total;
 }
 
 void apply_domain_boundary(Grid& g) {

@@ -45,4 +45,19 @@ void apply_domain_boundary(Grid& grid);
 /// and Coulomb friction mu |v_n| taken off the tangential part.
 Vec3 wall_velocity(const Vec3& v, const Vec3& n, Boundary b, Real friction);
 
+/// Sets the velocity of every active node with mass to `f(x, v, m)` (x its position, v its
+/// velocity, m its mass), which returns the work the condition did on the node, or 0. Returns
+/// the total work, summed per block and then in block order: the same for any thread count.
+template <class Fn>
+Real constrain_nodes(Grid& g, Fn&& f) {
+  std::vector<Real> work(g.active_blocks(), 0);
+  for_each_active_node(g, [&](int i, int j, int k, std::size_t idx) {
+    if (g.mass[idx] <= 0) return;
+    work[idx / Grid::kBlockNodes] += f(g.position(i, j, k), g.velocity[idx], g.mass[idx]);
+  });
+  Real total = 0;
+  for (Real w : work) total += w;
+  return total;
+}
+
 }  // namespace mpm
