@@ -13,6 +13,7 @@
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "engine/step/simd/transfer_simd.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/cache_control.h>
 #include <hwy/highway.h>
 
 #include "engine/step/simd/corotated-inl.h"
@@ -165,6 +166,16 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
   constexpr int N = KernelTraits<K>::kNodes;
   constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
   const DF d;
+  // The next batch's particles, requested now so that their loads below (one batch later) do
+  // not wait for memory: the scatter's order only roughly follows memory order.
+  for (std::size_t q = b0 + kLanes; q < std::min(end, b0 + 2 * kLanes); ++q) {
+    const std::uint32_t pi = ord.order[q];
+    hwy::Prefetch(&p.x[pi]);
+    hwy::Prefetch(&p.v[pi]);
+    hwy::Prefetch(&p.F[pi]);
+    hwy::Prefetch(&p.object[pi]);
+    if constexpr (kAffine) hwy::Prefetch(&p.C[pi]);
+  }
   fill_stress(p, ord, fold, b0, end, sb);
   pb.b0 = sb.b0;
   pb.b1 = sb.b1;
@@ -394,16 +405,81 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     const StoredReal* F = p.F[q0 + std::min(l, count - 1)].data();
     for (int e = 0; e < 9; ++e) Fin[e][l] = static_cast<float>(F[e]);
   }
-  // Runs of lanes with the same stencil cell (the reorder stage keeps a cell's particles
-  // together): with at most kMaxRuns runs in the batch, each run's node velocities are loaded
-  // once and spread to its lanes by blends, instead of gathered lane by lane. The values are
-  // the same either way.
-  constexpr int kMaxRuns = 3;
+  // Node velocities: (x, y) pairs gathered as one 64-bit value per lane (half the gathers'
+  // elements of two 32-bit gathers), then split into x and y lanes; z on its own.
+  const std::uint64_t* vel_xy = reinterpret_cast<const std::uint64_t*>(g.velocity_f.data());
+  const float* vel_z = g.velocity_f.data() + 2 * g.mass.size();
+  const hn::Repartition<std::uint64_t, DF> du64;
+  const hn::Repartition<std::int64_t, DF> di64;
+  const hn::Half<DI> dih;
+  // A batch whose stencil bases lie within two cells per axis (most batches after the reorder
+  // stage, which keeps a cell's particles together) reads only the 4 x 4 x 4 nodes from the
+  // smallest base: their velocities are gathered once per batch (box[e][y], lane 4 x + z),
+  // and each (i, j) row's two candidate rows in x and y form one 16-entry table, from which
+  // each lane picks its node by a lane permutation. The values are the same as on the paths
+  // below.
+  constexpr bool kBoxPath = kLanes == 16 && N <= 3;
+  bool box = false;
+  VF box_v[3][4], box_mid[3][4];  // [component][y]: lanes 4 x + z; mid: x = 1, 2 moved down
+  decltype(hn::IndicesFromVec(d, hn::Zero(di))) box_pick[N];
+  if constexpr (kBoxPath) {
+    VI lo[3];
+    box = true;
+    for (int a = 0; a < 3; ++a) {
+      const VI b = hn::Load(di, base[a]);
+      lo[a] = hn::MinOfLanes(di, b);
+      box = box && hn::AllTrue(di, hn::Lt(hn::Sub(hn::MaxOfLanes(di, b), lo[a]), hn::Set(di, 2)));
+    }
+    if (box) {
+      // Each lane's offset from the smallest base picks one of the table's four rows.
+      const VI sel = hn::Add(
+          hn::Add(hn::ShiftLeft<3>(hn::Sub(hn::Load(di, base[1]), lo[1])),
+                  hn::ShiftLeft<2>(hn::Sub(hn::Load(di, base[0]), lo[0]))),
+          hn::Sub(hn::Load(di, base[2]), lo[2]));
+      for (int k = 0; k < N; ++k) box_pick[k] = hn::IndicesFromVec(d, hn::Add(sel, hn::Set(di, k)));
+      const VI t = hn::Iota(di, 0), three = hn::Set(di, 3), mask = hn::Set(di, Grid::kBlockEdge - 1);
+      const VI cx = hn::Add(lo[0], hn::ShiftRight<2>(t)), cz = hn::Add(lo[2], hn::And(t, three));
+      const auto in_domain = [&](VI c, int a) {
+        return hn::Lt(hn::ShiftRight<Grid::kBlockBits>(c), hn::Set(di, g.blocks[a]));
+      };
+      const auto in_xz = hn::And(in_domain(cx, 0), in_domain(cz, 2));
+      const VI page_xz = hn::Add(
+          hn::Mul(hn::ShiftRight<Grid::kBlockBits>(cx), hn::Set(di, g.blocks.y() * g.blocks.z())),
+          hn::ShiftRight<Grid::kBlockBits>(cz));
+      const VI off_xz = hn::Or(hn::ShiftLeft<2 * Grid::kBlockBits>(hn::And(cx, mask)), hn::And(cz, mask));
+      const auto mid = hn::IndicesFromVec(d, hn::Add(hn::And(t, hn::Set(di, 7)), hn::Set(di, 4)));
+      for (int y = 0; y < 4; ++y) {
+        // Nodes outside the domain, or in a block no lane's stencil reaches (slot -1), are
+        // never picked: they read node 0.
+        const VI cy = hn::Add(lo[1], hn::Set(di, y));
+        const auto inside = hn::And(in_xz, in_domain(cy, 1));
+        const VI page = hn::Add(
+            page_xz, hn::Mul(hn::ShiftRight<Grid::kBlockBits>(cy), hn::Set(di, g.blocks.z())));
+        const VI sl = hn::GatherIndex(di, g.slot.data(), hn::IfThenElseZero(inside, page));
+        const VI vi = hn::IfThenElseZero(
+            hn::And(inside, hn::Gt(sl, hn::Set(di, -1))),
+            hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl),
+                    hn::Or(off_xz, hn::ShiftLeft<Grid::kBlockBits>(hn::And(cy, mask)))));
+        const VF vlo = hn::BitCast(
+            d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::LowerHalf(dih, vi))));
+        const VF vhi = hn::BitCast(
+            d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::UpperHalf(dih, vi))));
+        box_v[0][y] = hn::ConcatEven(d, vhi, vlo);
+        box_v[1][y] = hn::ConcatOdd(d, vhi, vlo);
+        box_v[2][y] = hn::GatherIndex(d, vel_z, vi);
+        for (int e = 0; e < 3; ++e) box_mid[e][y] = hn::TableLookupLanes(box_v[e][y], mid);
+      }
+    }
+  }
+  // Otherwise, runs of lanes with the same stencil cell: with at most kMaxRuns runs in the
+  // batch, each run's node velocities are loaded once and spread to its lanes by blends,
+  // instead of gathered lane by lane. The values are the same either way.
+  constexpr int kMaxRuns = 6;
   alignas(64) std::int32_t run_of[kLanes];
   std::size_t run_first[kMaxRuns] = {};
   int runs = 1;
   run_of[0] = 0;
-  for (std::size_t l = 1; l < kLanes; ++l) {
+  for (std::size_t l = 1; l < kLanes && !box; ++l) {
     if (base[0][l] != base[0][l - 1] || base[1][l] != base[1][l - 1] ||
         base[2][l] != base[2][l - 1]) {
       if (runs < kMaxRuns) run_first[runs] = l;
@@ -411,7 +487,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     }
     run_of[l] = runs - 1;
   }
-  const bool few = runs <= kMaxRuns;
+  const bool few = !box && runs <= kMaxRuns;
   std::size_t run_nodes[kMaxRuns][N * N * N];
   hn::Mask<DF> in_run[kMaxRuns];
   if (few)
@@ -450,7 +526,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       for (int y = 0; y < 2; ++y)
         for (int z = 0; z < 2; ++z)
           slots[x][y][z] =
-              few ? hn::Zero(di)
+              few || box ? hn::Zero(di)
                   : hn::GatherIndex(di, g.slot.data(),
                                     hn::Add(hn::Add(page[0][x], page[1][y]), page[2][z]));
   }
@@ -460,13 +536,6 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     const VF s = hn::Set(d, static_cast<float>(g.inv_h[a]));
     for (int k = 0; k < N; ++k) dw[a][k] = hn::Mul(dw[a][k], s);
   }
-  // Node velocities: (x, y) pairs gathered as one 64-bit value per lane (half the gathers'
-  // elements of two 32-bit gathers), then split into x and y lanes; z on its own.
-  const std::uint64_t* vel_xy = reinterpret_cast<const std::uint64_t*>(g.velocity_f.data());
-  const float* vel_z = g.velocity_f.data() + 2 * g.mass.size();
-  const hn::Repartition<std::uint64_t, DF> du64;
-  const hn::Repartition<std::int64_t, DF> di64;
-  const hn::Half<DI> dih;
   // Each (i, j) row of the stencil summed over k first (r0: w2, r1: dw2, r2: k w2), then the
   // rows: v, grad v (column a: d/dx_a) and the index moments sum w v (i, j, k) for B.
   VF sv[3], sg[3][3], sb[3][3];
@@ -483,10 +552,22 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       for (int z = 0; z < 2; ++z)
         sij[z] = hn::IfThenElse(up[1][j], hn::IfThenElse(up[0][i], slots[1][1][z], slots[0][1][z]),
                                 hn::IfThenElse(up[0][i], slots[1][0][z], slots[0][0][z]));
+      // The box path's table for this row: x = i, i + 1 (lanes 4 x + z) of y = j, then of
+      // y = j + 1.
+      VF row_table[3];
+      if (kBoxPath && box)
+        for (int e = 0; e < 3; ++e) {
+          const VF lo_row = i == 1 ? box_mid[e][j] : box_v[e][j];
+          const VF hi_row = i == 1 ? box_mid[e][j + 1] : box_v[e][j + 1];
+          row_table[e] = i == 2 ? hn::ConcatUpperUpper(d, hi_row, lo_row)
+                                : hn::ConcatLowerLower(d, hi_row, lo_row);
+        }
       for (int k = 0; k < N; ++k) {
         const VF kw = hn::Mul(hn::Set(d, static_cast<float>(k)), w[2][k]);
         VF v3[3];
-        if (few) {
+        if (kBoxPath && box) {
+          for (int e = 0; e < 3; ++e) v3[e] = hn::TableLookupLanes(row_table[e], box_pick[k]);
+        } else if (few) {
           const int n = (i * N + j) * N + k;
           const float* vf = g.velocity_f.data();
           for (int e = 0; e < 3; ++e) {
