@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <stdexcept>
+#include <type_traits>
 
 // Highway compiles this file once per instruction set (foreach_target) and picks one at run
 // time (HWY_DYNAMIC_DISPATCH), so the default build runs AVX-512 on Zen 4 and SSE4 elsewhere.
@@ -82,6 +83,51 @@ void lane_weights(D d, V x, V* w, V* dw) {
   }
 }
 
+/// The kLanes float 3x3 matrices at `m` (consecutive, column-major), one per lane:
+/// out[3 c + r] holds M(r, c) of every lane. Two rounds of three-way deinterleaving, in
+/// registers but for one 576-byte pass through the stack written and read as whole vectors:
+/// M's columns are triples (rows of the first round), each row's columns the second.
+/// (Float storage only: a double build never calls it, see kFloatMatrices.)
+template <class T>
+void load_matrices(const T* m, VF out[9]) {
+  if constexpr (std::is_same_v<T, float>) {
+    const DF d;
+    alignas(64) float rows[3][3 * kLanes];
+    for (std::size_t t = 0; t < 3; ++t) {
+      VF r0, r1, r2;
+      hn::LoadInterleaved3(d, m + 3 * kLanes * t, r0, r1, r2);
+      hn::Store(r0, d, rows[0] + kLanes * t);
+      hn::Store(r1, d, rows[1] + kLanes * t);
+      hn::Store(r2, d, rows[2] + kLanes * t);
+    }
+    for (int r = 0; r < 3; ++r) hn::LoadInterleaved3(d, rows[r], out[r], out[3 + r], out[6 + r]);
+  }
+}
+
+/// The inverse of load_matrices: stores lane l's matrix (in[3 c + r] = M(r, c)) at m + 9 l.
+template <class T>
+void store_matrices(const VF in[9], T* m) {
+  if constexpr (std::is_same_v<T, float>) {
+    const DF d;
+    alignas(64) float rows[3][3 * kLanes];
+    for (int r = 0; r < 3; ++r) hn::StoreInterleaved3(in[r], in[3 + r], in[6 + r], d, rows[r]);
+    for (std::size_t t = 0; t < 3; ++t)
+      hn::StoreInterleaved3(hn::Load(d, rows[0] + kLanes * t), hn::Load(d, rows[1] + kLanes * t),
+                            hn::Load(d, rows[2] + kLanes * t), d, m + 3 * kLanes * t);
+  }
+}
+
+/// True if the stored matrices are float, so load_matrices and store_matrices apply.
+constexpr bool kFloatMatrices = std::is_same_v<StoredReal, float>;
+
+/// True if order[b0, b0 + kLanes) are kLanes consecutive particles (the usual case after the
+/// reorder stage), whose matrices load_matrices can then read.
+inline bool consecutive_batch(const ParticleOrder& ord, std::size_t b0, std::size_t count) {
+  if (!kFloatMatrices || count < kLanes) return false;
+  const hn::RebindToUnsigned<DF> du;
+  return hn::AllTrue(du, hn::Eq(hn::LoadU(du, ord.order.data() + b0), hn::Iota(du, ord.order[b0])));
+}
+
 /// -V0 tau of the kLanes particles order[b0, b0 + kLanes) (clamped to `end`), for the scatter:
 /// computed in lanes for the objects whose model `fold` names (the stress folded into the
 /// scatter, so it is never stored), read from p.stress for the others.
@@ -98,14 +144,17 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
   sb.b1 = std::min(end, b0 + kLanes);
   const std::size_t count = sb.b1 - b0;
   alignas(64) float in[9][kLanes], mu2[kLanes], lam[kLanes], nv0[kLanes];
+  const bool consecutive = consecutive_batch(ord, b0, count);
   bool any = false;
   for (std::size_t l = 0; l < kLanes; ++l) {
     const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
     const std::uint32_t o = p.object[pi];
     const bool lane = o < fold.size() && fold[o].kind == BatchModel::Kind::fixed_corotated;
     any |= lane && l < count;
-    const StoredReal* f = p.F[pi].data();
-    for (int e = 0; e < 9; ++e) in[e][l] = static_cast<float>(f[e]);
+    if (!consecutive) {
+      const StoredReal* f = p.F[pi].data();
+      for (int e = 0; e < 9; ++e) in[e][l] = static_cast<float>(f[e]);
+    }
     mu2[l] = lane ? static_cast<float>(2 * fold[o].mu) : 0.0f;
     lam[l] = lane ? static_cast<float>(fold[o].lambda) : 0.0f;
     nv0[l] = static_cast<float>(-p.object_volume0[o]);
@@ -113,7 +162,10 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
   std::uint64_t bad = 0;
   if (any) {
     hn::Vec<DF> fv[9], tau[9];
-    for (int e = 0; e < 9; ++e) fv[e] = hn::Load(d, in[e]);
+    if (consecutive)
+      load_matrices(p.F[ord.order[b0]].data(), fv);
+    else
+      for (int e = 0; e < 9; ++e) fv[e] = hn::Load(d, in[e]);
     const auto m =
         corotated::neg_v0_tau(d, fv, hn::Load(d, mu2), hn::Load(d, lam), hn::Load(d, nv0), tau);
     for (int e = 0; e < 9; ++e) hn::Store(tau[e], d, sb.tau[e]);
@@ -184,6 +236,14 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
   alignas(64) float wl[3][N][kLanes], dwl[3][N][kLanes];
   alignas(64) double xs[3][kLanes];
   alignas(64) std::int32_t bl[3][kLanes];
+  const bool consecutive = kAffine && consecutive_batch(ord, b0, count);
+  if constexpr (kAffine)
+    if (consecutive) {
+      VF c[9];
+      load_matrices(p.C[ord.order[b0]].data(), c);
+      for (int e = 0; e < 3; ++e)
+        for (int a = 0; a < 3; ++a) hn::Store(c[3 * a + e], d, cm[e][a]);
+    }
   for (std::size_t l = 0; l < kLanes; ++l) {
     const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
     for (int a = 0; a < 3; ++a) {
@@ -191,7 +251,7 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
       vel[a][l] = static_cast<float>(p.v[pi][a]);
     }
     pb.m[l] = static_cast<float>(p.mass(pi));
-    if constexpr (kAffine) {
+    if (kAffine && !consecutive) {
       const StoredReal* C = p.C[pi].data();  // column-major
       for (int e = 0; e < 3; ++e)
         for (int a = 0; a < 3; ++a) cm[e][a][l] = static_cast<float>(C[3 * a + e]);
@@ -401,85 +461,27 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       }
     }
   }
-  for (std::size_t l = 0; l < kLanes; ++l) {
-    const StoredReal* F = p.F[q0 + std::min(l, count - 1)].data();
-    for (int e = 0; e < 9; ++e) Fin[e][l] = static_cast<float>(F[e]);
-  }
-  // Node velocities: (x, y) pairs gathered as one 64-bit value per lane (half the gathers'
-  // elements of two 32-bit gathers), then split into x and y lanes; z on its own.
-  const std::uint64_t* vel_xy = reinterpret_cast<const std::uint64_t*>(g.velocity_f.data());
-  const float* vel_z = g.velocity_f.data() + 2 * g.mass.size();
-  const hn::Repartition<std::uint64_t, DF> du64;
-  const hn::Repartition<std::int64_t, DF> di64;
-  const hn::Half<DI> dih;
-  // A batch whose stencil bases lie within two cells per axis (most batches after the reorder
-  // stage, which keeps a cell's particles together) reads only the 4 x 4 x 4 nodes from the
-  // smallest base: their velocities are gathered once per batch (box[e][y], lane 4 x + z),
-  // and each (i, j) row's two candidate rows in x and y form one 16-entry table, from which
-  // each lane picks its node by a lane permutation. The values are the same as on the paths
-  // below.
-  constexpr bool kBoxPath = kLanes == 16 && N <= 3;
-  bool box = false;
-  VF box_v[3][4], box_mid[3][4];  // [component][y]: lanes 4 x + z; mid: x = 1, 2 moved down
-  decltype(hn::IndicesFromVec(d, hn::Zero(di))) box_pick[N];
-  if constexpr (kBoxPath) {
-    VI lo[3];
-    box = true;
-    for (int a = 0; a < 3; ++a) {
-      const VI b = hn::Load(di, base[a]);
-      lo[a] = hn::MinOfLanes(di, b);
-      box = box && hn::AllTrue(di, hn::Lt(hn::Sub(hn::MaxOfLanes(di, b), lo[a]), hn::Set(di, 2)));
+  if constexpr (kFloatMatrices)
+    if (count == kLanes) {
+      VF f[9];
+      load_matrices(p.F[q0].data(), f);
+      for (int e = 0; e < 9; ++e) hn::Store(f[e], d, Fin[e]);
     }
-    if (box) {
-      // Each lane's offset from the smallest base picks one of the table's four rows.
-      const VI sel = hn::Add(
-          hn::Add(hn::ShiftLeft<3>(hn::Sub(hn::Load(di, base[1]), lo[1])),
-                  hn::ShiftLeft<2>(hn::Sub(hn::Load(di, base[0]), lo[0]))),
-          hn::Sub(hn::Load(di, base[2]), lo[2]));
-      for (int k = 0; k < N; ++k) box_pick[k] = hn::IndicesFromVec(d, hn::Add(sel, hn::Set(di, k)));
-      const VI t = hn::Iota(di, 0), three = hn::Set(di, 3), mask = hn::Set(di, Grid::kBlockEdge - 1);
-      const VI cx = hn::Add(lo[0], hn::ShiftRight<2>(t)), cz = hn::Add(lo[2], hn::And(t, three));
-      const auto in_domain = [&](VI c, int a) {
-        return hn::Lt(hn::ShiftRight<Grid::kBlockBits>(c), hn::Set(di, g.blocks[a]));
-      };
-      const auto in_xz = hn::And(in_domain(cx, 0), in_domain(cz, 2));
-      const VI page_xz = hn::Add(
-          hn::Mul(hn::ShiftRight<Grid::kBlockBits>(cx), hn::Set(di, g.blocks.y() * g.blocks.z())),
-          hn::ShiftRight<Grid::kBlockBits>(cz));
-      const VI off_xz = hn::Or(hn::ShiftLeft<2 * Grid::kBlockBits>(hn::And(cx, mask)), hn::And(cz, mask));
-      const auto mid = hn::IndicesFromVec(d, hn::Add(hn::And(t, hn::Set(di, 7)), hn::Set(di, 4)));
-      for (int y = 0; y < 4; ++y) {
-        // Nodes outside the domain, or in a block no lane's stencil reaches (slot -1), are
-        // never picked: they read node 0.
-        const VI cy = hn::Add(lo[1], hn::Set(di, y));
-        const auto inside = hn::And(in_xz, in_domain(cy, 1));
-        const VI page = hn::Add(
-            page_xz, hn::Mul(hn::ShiftRight<Grid::kBlockBits>(cy), hn::Set(di, g.blocks.z())));
-        const VI sl = hn::GatherIndex(di, g.slot.data(), hn::IfThenElseZero(inside, page));
-        const VI vi = hn::IfThenElseZero(
-            hn::And(inside, hn::Gt(sl, hn::Set(di, -1))),
-            hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl),
-                    hn::Or(off_xz, hn::ShiftLeft<Grid::kBlockBits>(hn::And(cy, mask)))));
-        const VF vlo = hn::BitCast(
-            d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::LowerHalf(dih, vi))));
-        const VF vhi = hn::BitCast(
-            d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::UpperHalf(dih, vi))));
-        box_v[0][y] = hn::ConcatEven(d, vhi, vlo);
-        box_v[1][y] = hn::ConcatOdd(d, vhi, vlo);
-        box_v[2][y] = hn::GatherIndex(d, vel_z, vi);
-        for (int e = 0; e < 3; ++e) box_mid[e][y] = hn::TableLookupLanes(box_v[e][y], mid);
-      }
+  if (!kFloatMatrices || count < kLanes)
+    for (std::size_t l = 0; l < kLanes; ++l) {
+      const StoredReal* F = p.F[q0 + std::min(l, count - 1)].data();
+      for (int e = 0; e < 9; ++e) Fin[e][l] = static_cast<float>(F[e]);
     }
-  }
-  // Otherwise, runs of lanes with the same stencil cell: with at most kMaxRuns runs in the
-  // batch, each run's node velocities are loaded once and spread to its lanes by blends,
-  // instead of gathered lane by lane. The values are the same either way.
+  // Runs of lanes with the same stencil cell (the reorder stage keeps a cell's particles
+  // together): with at most kMaxRuns runs in the batch, each run's node velocities are loaded
+  // once and spread to its lanes by blends, instead of gathered lane by lane. The values are
+  // the same either way. Cells near a surface hold fewer particles: a batch spans up to six.
   constexpr int kMaxRuns = 6;
   alignas(64) std::int32_t run_of[kLanes];
   std::size_t run_first[kMaxRuns] = {};
   int runs = 1;
   run_of[0] = 0;
-  for (std::size_t l = 1; l < kLanes && !box; ++l) {
+  for (std::size_t l = 1; l < kLanes; ++l) {
     if (base[0][l] != base[0][l - 1] || base[1][l] != base[1][l - 1] ||
         base[2][l] != base[2][l - 1]) {
       if (runs < kMaxRuns) run_first[runs] = l;
@@ -487,7 +489,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     }
     run_of[l] = runs - 1;
   }
-  const bool few = !box && runs <= kMaxRuns;
+  const bool few = runs <= kMaxRuns;
   std::size_t run_nodes[kMaxRuns][N * N * N];
   hn::Mask<DF> in_run[kMaxRuns];
   if (few)
@@ -526,7 +528,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       for (int y = 0; y < 2; ++y)
         for (int z = 0; z < 2; ++z)
           slots[x][y][z] =
-              few || box ? hn::Zero(di)
+              few ? hn::Zero(di)
                   : hn::GatherIndex(di, g.slot.data(),
                                     hn::Add(hn::Add(page[0][x], page[1][y]), page[2][z]));
   }
@@ -536,6 +538,13 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     const VF s = hn::Set(d, static_cast<float>(g.inv_h[a]));
     for (int k = 0; k < N; ++k) dw[a][k] = hn::Mul(dw[a][k], s);
   }
+  // Node velocities: (x, y) pairs gathered as one 64-bit value per lane (half the gathers'
+  // elements of two 32-bit gathers), then split into x and y lanes; z on its own.
+  const std::uint64_t* vel_xy = reinterpret_cast<const std::uint64_t*>(g.velocity_f.data());
+  const float* vel_z = g.velocity_f.data() + 2 * g.mass.size();
+  const hn::Repartition<std::uint64_t, DF> du64;
+  const hn::Repartition<std::int64_t, DF> di64;
+  const hn::Half<DI> dih;
   // Each (i, j) row of the stencil summed over k first (r0: w2, r1: dw2, r2: k w2), then the
   // rows: v, grad v (column a: d/dx_a) and the index moments sum w v (i, j, k) for B.
   VF sv[3], sg[3][3], sb[3][3];
@@ -552,22 +561,10 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       for (int z = 0; z < 2; ++z)
         sij[z] = hn::IfThenElse(up[1][j], hn::IfThenElse(up[0][i], slots[1][1][z], slots[0][1][z]),
                                 hn::IfThenElse(up[0][i], slots[1][0][z], slots[0][0][z]));
-      // The box path's table for this row: x = i, i + 1 (lanes 4 x + z) of y = j, then of
-      // y = j + 1.
-      VF row_table[3];
-      if (kBoxPath && box)
-        for (int e = 0; e < 3; ++e) {
-          const VF lo_row = i == 1 ? box_mid[e][j] : box_v[e][j];
-          const VF hi_row = i == 1 ? box_mid[e][j + 1] : box_v[e][j + 1];
-          row_table[e] = i == 2 ? hn::ConcatUpperUpper(d, hi_row, lo_row)
-                                : hn::ConcatLowerLower(d, hi_row, lo_row);
-        }
       for (int k = 0; k < N; ++k) {
         const VF kw = hn::Mul(hn::Set(d, static_cast<float>(k)), w[2][k]);
         VF v3[3];
-        if (kBoxPath && box) {
-          for (int e = 0; e < 3; ++e) v3[e] = hn::TableLookupLanes(row_table[e], box_pick[k]);
-        } else if (few) {
+        if (few) {
           const int n = (i * N + j) * N + k;
           const float* vf = g.velocity_f.data();
           for (int e = 0; e < 3; ++e) {
@@ -646,15 +643,26 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     for (int col = 0; col < 3; ++col)
       for (int r = 0; r < 3; ++r) hn::Store(C[r][col], d, out[9 + 3 * col + r]);
   for (int e = 0; e < 3; ++e) hn::Store(sv[e], d, out[18 + e]);
-  for (std::size_t l = 0; l < count; ++l) {
-    const std::size_t q = q0 + l;
-    StoredReal* F = p.F[q].data();
-    for (int e = 0; e < 9; ++e) F[e] = static_cast<StoredReal>(out[e][l]);
-    if constexpr (kAffine) {
-      StoredReal* Cq = p.C[q].data();
-      for (int e = 0; e < 9; ++e) Cq[e] = static_cast<StoredReal>(out[9 + e][l]);
+  if constexpr (kFloatMatrices)
+    if (count == kLanes) {
+      VF m[9];
+      for (int e = 0; e < 9; ++e) m[e] = hn::Load(d, out[e]);
+      store_matrices(m, p.F[q0].data());
+      if constexpr (kAffine) {
+        for (int e = 0; e < 9; ++e) m[e] = hn::Load(d, out[9 + e]);
+        store_matrices(m, p.C[q0].data());
+      }
     }
-  }
+  if (!kFloatMatrices || count < kLanes)
+    for (std::size_t l = 0; l < count; ++l) {
+      const std::size_t q = q0 + l;
+      StoredReal* F = p.F[q].data();
+      for (int e = 0; e < 9; ++e) F[e] = static_cast<StoredReal>(out[e][l]);
+      if constexpr (kAffine) {
+        StoredReal* Cq = p.C[q].data();
+        for (int e = 0; e < 9; ++e) Cq[e] = static_cast<StoredReal>(out[9 + e][l]);
+      }
+    }
   if (count == kLanes) {
     // Velocities widened to double in lanes and stored three axes at a time.
     const hn::ScalableTag<double> dd;
