@@ -117,6 +117,19 @@ void store_matrices(const VF in[9], T* m) {
   }
 }
 
+/// Lane l of in[k] (k < N) to out[N l + k], for the N = 2, 3, 4 weights of a kernel.
+template <int N>
+void store_interleaved(const float (*in)[kLanes], float* out) {
+  const DF d;
+  if constexpr (N == 2)
+    hn::StoreInterleaved2(hn::Load(d, in[0]), hn::Load(d, in[1]), d, out);
+  else if constexpr (N == 3)
+    hn::StoreInterleaved3(hn::Load(d, in[0]), hn::Load(d, in[1]), hn::Load(d, in[2]), d, out);
+  else
+    hn::StoreInterleaved4(hn::Load(d, in[0]), hn::Load(d, in[1]), hn::Load(d, in[2]),
+                          hn::Load(d, in[3]), d, out);
+}
+
 /// True if the stored matrices are float, so load_matrices and store_matrices apply.
 constexpr bool kFloatMatrices = std::is_same_v<StoredReal, float>;
 
@@ -201,9 +214,11 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
 template <int N>
 struct ScatterBatch {
   std::size_t b0 = 0, b1 = 0;               ///< The batch is order[b0, b1).
-  alignas(64) float w[kLanes][3][kLanes];   ///< w[l][axis][k]: 1D weight of node base + k.
-  alignas(64) float dw[kLanes][3][kLanes];  ///< dw[l][axis][k]: its derivative, 1/m.
-  std::int32_t base[kLanes][3];             ///< The stencil's first node per axis.
+  /// w[axis][N l + k]: lane l's 1D weight of node base + k (N per lane, interleaved; padded
+  /// so that a full vector loaded at N l stays inside).
+  alignas(64) float w[3][(N + 1) * kLanes] = {};
+  alignas(64) float dw[3][(N + 1) * kLanes] = {};  ///< The weights' derivatives, 1/m, as w.
+  alignas(64) std::int32_t base[3][kLanes];   ///< The stencil's first node per axis and lane.
   alignas(64) float m[kLanes];              ///< Particle mass, kg.
   alignas(64) float a[3][kLanes];           ///< m v + Q (x_base - x_p): momentum at node 0.
   alignas(64) float c[3][3][kLanes];        ///< c[e][a] = Q_ea h_a: momentum per node index.
@@ -235,7 +250,6 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
   alignas(64) float corner[3][kLanes], vel[3][kLanes], cm[3][3][kLanes];
   alignas(64) float wl[3][N][kLanes], dwl[3][N][kLanes];
   alignas(64) double xs[3][kLanes];
-  alignas(64) std::int32_t bl[3][kLanes];
   const bool consecutive = kAffine && consecutive_batch(ord, b0, count);
   if constexpr (kAffine)
     if (consecutive) {
@@ -278,16 +292,13 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
       const auto corner_a = hn::Sub(hn::MulAdd(b, hn::Set(dd, g.h[a]), hn::Set(dd, g.origin[a])),
                                     hn::Load(dd, xs[a] + h));
       hn::Store(hn::DemoteTo(dh, corner_a), dh, corner[a] + h);
-      hn::Store(hn::DemoteTo(dih, b), dih, bl[a] + h);
+      hn::Store(hn::DemoteTo(dih, b), dih, pb.base[a] + h);
     }
-  for (std::size_t l = 0; l < kLanes; ++l)
-    for (int a = 0; a < 3; ++a) {
-      pb.base[l][a] = bl[a][l];
-      for (int k = 0; k < N; ++k) {
-        pb.w[l][a][k] = wl[a][k][l];
-        pb.dw[l][a][k] = dwl[a][k][l];
-      }
-    }
+  // From one lane per particle to N consecutive floats per particle, by interleaved stores.
+  for (int a = 0; a < 3; ++a) {
+    store_interleaved<N>(wl[a], pb.w[a]);
+    store_interleaved<N>(dwl[a], pb.dw[a]);
+  }
   // Momentum at node (i, j, k): m v + Q (x_base + (i, j, k) h - x_p) = a + i c0 + j c1 + k c2,
   // Q = m C (APIC) or m C + dt (-V0 tau) D^-1 (MLS, Hu et al. 2018, eq. 29).
   const VF m = hn::Load(d, pb.m);
@@ -344,11 +355,13 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
     for (; q < end && ord.keys[ord.order[q]] == cell; ++q) {
       if (q >= pb.b1) fill_batch<K, T>(p, ord, fold, g, dt, q, end, sb, pb);
       const std::size_t l = q - pb.b0;
-      base = Vec3i(pb.base[l][0], pb.base[l][1], pb.base[l][2]);
-      const VF W0 = hn::Load(d, pb.w[l][0]), W1 = hn::Load(d, pb.w[l][1]),
-               W2 = hn::Load(d, pb.w[l][2]);
-      const VF D0 = hn::Load(d, pb.dw[l][0]), D1 = hn::Load(d, pb.dw[l][1]),
-               D2 = hn::Load(d, pb.dw[l][2]);
+      base = Vec3i(pb.base[0][l], pb.base[1][l], pb.base[2][l]);
+      // Lanes 0 to N - 1 hold the particle's weights (the rest, its neighbours', are never
+      // looked up).
+      const VF W0 = hn::LoadU(d, pb.w[0] + N * l), W1 = hn::LoadU(d, pb.w[1] + N * l),
+               W2 = hn::LoadU(d, pb.w[2] + N * l);
+      const VF D0 = hn::LoadU(d, pb.dw[0] + N * l), D1 = hn::LoadU(d, pb.dw[1] + N * l),
+               D2 = hn::LoadU(d, pb.dw[2] + N * l);
       const VF mv = hn::Set(d, pb.m[l]);
       VF av[3], c[3][3], S[3][3];
       for (int e = 0; e < 3; ++e) {
