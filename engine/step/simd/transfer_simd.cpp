@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <stdexcept>
+#include <type_traits>
 
 // Highway compiles this file once per instruction set (foreach_target) and picks one at run
 // time (HWY_DYNAMIC_DISPATCH), so the default build runs AVX-512 on Zen 4 and SSE4 elsewhere.
@@ -13,6 +14,7 @@
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "engine/step/simd/transfer_simd.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/cache_control.h>
 #include <hwy/highway.h>
 
 #include "engine/step/simd/corotated-inl.h"
@@ -81,6 +83,64 @@ void lane_weights(D d, V x, V* w, V* dw) {
   }
 }
 
+/// The kLanes float 3x3 matrices at `m` (consecutive, column-major), one per lane:
+/// out[3 c + r] holds M(r, c) of every lane. Two rounds of three-way deinterleaving, in
+/// registers but for one 576-byte pass through the stack written and read as whole vectors:
+/// M's columns are triples (rows of the first round), each row's columns the second.
+/// (Float storage only: a double build never calls it, see kFloatMatrices.)
+template <class T>
+void load_matrices(const T* m, VF out[9]) {
+  if constexpr (std::is_same_v<T, float>) {
+    const DF d;
+    alignas(64) float rows[3][3 * kLanes];
+    for (std::size_t t = 0; t < 3; ++t) {
+      VF r0, r1, r2;
+      hn::LoadInterleaved3(d, m + 3 * kLanes * t, r0, r1, r2);
+      hn::Store(r0, d, rows[0] + kLanes * t);
+      hn::Store(r1, d, rows[1] + kLanes * t);
+      hn::Store(r2, d, rows[2] + kLanes * t);
+    }
+    for (int r = 0; r < 3; ++r) hn::LoadInterleaved3(d, rows[r], out[r], out[3 + r], out[6 + r]);
+  }
+}
+
+/// The inverse of load_matrices: stores lane l's matrix (in[3 c + r] = M(r, c)) at m + 9 l.
+template <class T>
+void store_matrices(const VF in[9], T* m) {
+  if constexpr (std::is_same_v<T, float>) {
+    const DF d;
+    alignas(64) float rows[3][3 * kLanes];
+    for (int r = 0; r < 3; ++r) hn::StoreInterleaved3(in[r], in[3 + r], in[6 + r], d, rows[r]);
+    for (std::size_t t = 0; t < 3; ++t)
+      hn::StoreInterleaved3(hn::Load(d, rows[0] + kLanes * t), hn::Load(d, rows[1] + kLanes * t),
+                            hn::Load(d, rows[2] + kLanes * t), d, m + 3 * kLanes * t);
+  }
+}
+
+/// Lane l of in[k] (k < N) to out[N l + k], for the N = 2, 3, 4 weights of a kernel.
+template <int N>
+void store_interleaved(const float (*in)[kLanes], float* out) {
+  const DF d;
+  if constexpr (N == 2)
+    hn::StoreInterleaved2(hn::Load(d, in[0]), hn::Load(d, in[1]), d, out);
+  else if constexpr (N == 3)
+    hn::StoreInterleaved3(hn::Load(d, in[0]), hn::Load(d, in[1]), hn::Load(d, in[2]), d, out);
+  else
+    hn::StoreInterleaved4(hn::Load(d, in[0]), hn::Load(d, in[1]), hn::Load(d, in[2]),
+                          hn::Load(d, in[3]), d, out);
+}
+
+/// True if the stored matrices are float, so load_matrices and store_matrices apply.
+constexpr bool kFloatMatrices = std::is_same_v<StoredReal, float>;
+
+/// True if order[b0, b0 + kLanes) are kLanes consecutive particles (the usual case after the
+/// reorder stage), whose matrices load_matrices can then read.
+inline bool consecutive_batch(const ParticleOrder& ord, std::size_t b0, std::size_t count) {
+  if (!kFloatMatrices || count < kLanes) return false;
+  const hn::RebindToUnsigned<DF> du;
+  return hn::AllTrue(du, hn::Eq(hn::LoadU(du, ord.order.data() + b0), hn::Iota(du, ord.order[b0])));
+}
+
 /// -V0 tau of the kLanes particles order[b0, b0 + kLanes) (clamped to `end`), for the scatter:
 /// computed in lanes for the objects whose model `fold` names (the stress folded into the
 /// scatter, so it is never stored), read from p.stress for the others.
@@ -97,14 +157,17 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
   sb.b1 = std::min(end, b0 + kLanes);
   const std::size_t count = sb.b1 - b0;
   alignas(64) float in[9][kLanes], mu2[kLanes], lam[kLanes], nv0[kLanes];
+  const bool consecutive = consecutive_batch(ord, b0, count);
   bool any = false;
   for (std::size_t l = 0; l < kLanes; ++l) {
     const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
     const std::uint32_t o = p.object[pi];
     const bool lane = o < fold.size() && fold[o].kind == BatchModel::Kind::fixed_corotated;
     any |= lane && l < count;
-    const StoredReal* f = p.F[pi].data();
-    for (int e = 0; e < 9; ++e) in[e][l] = static_cast<float>(f[e]);
+    if (!consecutive) {
+      const StoredReal* f = p.F[pi].data();
+      for (int e = 0; e < 9; ++e) in[e][l] = static_cast<float>(f[e]);
+    }
     mu2[l] = lane ? static_cast<float>(2 * fold[o].mu) : 0.0f;
     lam[l] = lane ? static_cast<float>(fold[o].lambda) : 0.0f;
     nv0[l] = static_cast<float>(-p.object_volume0[o]);
@@ -112,7 +175,10 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
   std::uint64_t bad = 0;
   if (any) {
     hn::Vec<DF> fv[9], tau[9];
-    for (int e = 0; e < 9; ++e) fv[e] = hn::Load(d, in[e]);
+    if (consecutive)
+      load_matrices(p.F[ord.order[b0]].data(), fv);
+    else
+      for (int e = 0; e < 9; ++e) fv[e] = hn::Load(d, in[e]);
     const auto m =
         corotated::neg_v0_tau(d, fv, hn::Load(d, mu2), hn::Load(d, lam), hn::Load(d, nv0), tau);
     for (int e = 0; e < 9; ++e) hn::Store(tau[e], d, sb.tau[e]);
@@ -148,9 +214,11 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
 template <int N>
 struct ScatterBatch {
   std::size_t b0 = 0, b1 = 0;               ///< The batch is order[b0, b1).
-  alignas(64) float w[kLanes][3][kLanes];   ///< w[l][axis][k]: 1D weight of node base + k.
-  alignas(64) float dw[kLanes][3][kLanes];  ///< dw[l][axis][k]: its derivative, 1/m.
-  std::int32_t base[kLanes][3];             ///< The stencil's first node per axis.
+  /// w[axis][N l + k]: lane l's 1D weight of node base + k (N per lane, interleaved; padded
+  /// so that a full vector loaded at N l stays inside).
+  alignas(64) float w[3][(N + 1) * kLanes] = {};
+  alignas(64) float dw[3][(N + 1) * kLanes] = {};  ///< The weights' derivatives, 1/m, as w.
+  alignas(64) std::int32_t base[3][kLanes];   ///< The stencil's first node per axis and lane.
   alignas(64) float m[kLanes];              ///< Particle mass, kg.
   alignas(64) float a[3][kLanes];           ///< m v + Q (x_base - x_p): momentum at node 0.
   alignas(64) float c[3][3][kLanes];        ///< c[e][a] = Q_ea h_a: momentum per node index.
@@ -165,6 +233,16 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
   constexpr int N = KernelTraits<K>::kNodes;
   constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
   const DF d;
+  // The next batch's particles, requested now so that their loads below (one batch later) do
+  // not wait for memory: the scatter's order only roughly follows memory order.
+  for (std::size_t q = b0 + kLanes; q < std::min(end, b0 + 2 * kLanes); ++q) {
+    const std::uint32_t pi = ord.order[q];
+    hwy::Prefetch(&p.x[pi]);
+    hwy::Prefetch(&p.v[pi]);
+    hwy::Prefetch(&p.F[pi]);
+    hwy::Prefetch(&p.object[pi]);
+    if constexpr (kAffine) hwy::Prefetch(&p.C[pi]);
+  }
   fill_stress(p, ord, fold, b0, end, sb);
   pb.b0 = sb.b0;
   pb.b1 = sb.b1;
@@ -172,7 +250,14 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
   alignas(64) float corner[3][kLanes], vel[3][kLanes], cm[3][3][kLanes];
   alignas(64) float wl[3][N][kLanes], dwl[3][N][kLanes];
   alignas(64) double xs[3][kLanes];
-  alignas(64) std::int32_t bl[3][kLanes];
+  const bool consecutive = kAffine && consecutive_batch(ord, b0, count);
+  if constexpr (kAffine)
+    if (consecutive) {
+      VF c[9];
+      load_matrices(p.C[ord.order[b0]].data(), c);
+      for (int e = 0; e < 3; ++e)
+        for (int a = 0; a < 3; ++a) hn::Store(c[3 * a + e], d, cm[e][a]);
+    }
   for (std::size_t l = 0; l < kLanes; ++l) {
     const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
     for (int a = 0; a < 3; ++a) {
@@ -180,7 +265,7 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
       vel[a][l] = static_cast<float>(p.v[pi][a]);
     }
     pb.m[l] = static_cast<float>(p.mass(pi));
-    if constexpr (kAffine) {
+    if (kAffine && !consecutive) {
       const StoredReal* C = p.C[pi].data();  // column-major
       for (int e = 0; e < 3; ++e)
         for (int a = 0; a < 3; ++a) cm[e][a][l] = static_cast<float>(C[3 * a + e]);
@@ -207,16 +292,13 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
       const auto corner_a = hn::Sub(hn::MulAdd(b, hn::Set(dd, g.h[a]), hn::Set(dd, g.origin[a])),
                                     hn::Load(dd, xs[a] + h));
       hn::Store(hn::DemoteTo(dh, corner_a), dh, corner[a] + h);
-      hn::Store(hn::DemoteTo(dih, b), dih, bl[a] + h);
+      hn::Store(hn::DemoteTo(dih, b), dih, pb.base[a] + h);
     }
-  for (std::size_t l = 0; l < kLanes; ++l)
-    for (int a = 0; a < 3; ++a) {
-      pb.base[l][a] = bl[a][l];
-      for (int k = 0; k < N; ++k) {
-        pb.w[l][a][k] = wl[a][k][l];
-        pb.dw[l][a][k] = dwl[a][k][l];
-      }
-    }
+  // From one lane per particle to N consecutive floats per particle, by interleaved stores.
+  for (int a = 0; a < 3; ++a) {
+    store_interleaved<N>(wl[a], pb.w[a]);
+    store_interleaved<N>(dwl[a], pb.dw[a]);
+  }
   // Momentum at node (i, j, k): m v + Q (x_base + (i, j, k) h - x_p) = a + i c0 + j c1 + k c2,
   // Q = m C (APIC) or m C + dt (-V0 tau) D^-1 (MLS, Hu et al. 2018, eq. 29).
   const VF m = hn::Load(d, pb.m);
@@ -273,11 +355,13 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
     for (; q < end && ord.keys[ord.order[q]] == cell; ++q) {
       if (q >= pb.b1) fill_batch<K, T>(p, ord, fold, g, dt, q, end, sb, pb);
       const std::size_t l = q - pb.b0;
-      base = Vec3i(pb.base[l][0], pb.base[l][1], pb.base[l][2]);
-      const VF W0 = hn::Load(d, pb.w[l][0]), W1 = hn::Load(d, pb.w[l][1]),
-               W2 = hn::Load(d, pb.w[l][2]);
-      const VF D0 = hn::Load(d, pb.dw[l][0]), D1 = hn::Load(d, pb.dw[l][1]),
-               D2 = hn::Load(d, pb.dw[l][2]);
+      base = Vec3i(pb.base[0][l], pb.base[1][l], pb.base[2][l]);
+      // Lanes 0 to N - 1 hold the particle's weights (the rest, its neighbours', are never
+      // looked up).
+      const VF W0 = hn::LoadU(d, pb.w[0] + N * l), W1 = hn::LoadU(d, pb.w[1] + N * l),
+               W2 = hn::LoadU(d, pb.w[2] + N * l);
+      const VF D0 = hn::LoadU(d, pb.dw[0] + N * l), D1 = hn::LoadU(d, pb.dw[1] + N * l),
+               D2 = hn::LoadU(d, pb.dw[2] + N * l);
       const VF mv = hn::Set(d, pb.m[l]);
       VF av[3], c[3][3], S[3][3];
       for (int e = 0; e < 3; ++e) {
@@ -390,15 +474,22 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       }
     }
   }
-  for (std::size_t l = 0; l < kLanes; ++l) {
-    const StoredReal* F = p.F[q0 + std::min(l, count - 1)].data();
-    for (int e = 0; e < 9; ++e) Fin[e][l] = static_cast<float>(F[e]);
-  }
+  if constexpr (kFloatMatrices)
+    if (count == kLanes) {
+      VF f[9];
+      load_matrices(p.F[q0].data(), f);
+      for (int e = 0; e < 9; ++e) hn::Store(f[e], d, Fin[e]);
+    }
+  if (!kFloatMatrices || count < kLanes)
+    for (std::size_t l = 0; l < kLanes; ++l) {
+      const StoredReal* F = p.F[q0 + std::min(l, count - 1)].data();
+      for (int e = 0; e < 9; ++e) Fin[e][l] = static_cast<float>(F[e]);
+    }
   // Runs of lanes with the same stencil cell (the reorder stage keeps a cell's particles
   // together): with at most kMaxRuns runs in the batch, each run's node velocities are loaded
   // once and spread to its lanes by blends, instead of gathered lane by lane. The values are
-  // the same either way.
-  constexpr int kMaxRuns = 3;
+  // the same either way. Cells near a surface hold fewer particles: a batch spans up to six.
+  constexpr int kMaxRuns = 6;
   alignas(64) std::int32_t run_of[kLanes];
   std::size_t run_first[kMaxRuns] = {};
   int runs = 1;
@@ -565,15 +656,26 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     for (int col = 0; col < 3; ++col)
       for (int r = 0; r < 3; ++r) hn::Store(C[r][col], d, out[9 + 3 * col + r]);
   for (int e = 0; e < 3; ++e) hn::Store(sv[e], d, out[18 + e]);
-  for (std::size_t l = 0; l < count; ++l) {
-    const std::size_t q = q0 + l;
-    StoredReal* F = p.F[q].data();
-    for (int e = 0; e < 9; ++e) F[e] = static_cast<StoredReal>(out[e][l]);
-    if constexpr (kAffine) {
-      StoredReal* Cq = p.C[q].data();
-      for (int e = 0; e < 9; ++e) Cq[e] = static_cast<StoredReal>(out[9 + e][l]);
+  if constexpr (kFloatMatrices)
+    if (count == kLanes) {
+      VF m[9];
+      for (int e = 0; e < 9; ++e) m[e] = hn::Load(d, out[e]);
+      store_matrices(m, p.F[q0].data());
+      if constexpr (kAffine) {
+        for (int e = 0; e < 9; ++e) m[e] = hn::Load(d, out[9 + e]);
+        store_matrices(m, p.C[q0].data());
+      }
     }
-  }
+  if (!kFloatMatrices || count < kLanes)
+    for (std::size_t l = 0; l < count; ++l) {
+      const std::size_t q = q0 + l;
+      StoredReal* F = p.F[q].data();
+      for (int e = 0; e < 9; ++e) F[e] = static_cast<StoredReal>(out[e][l]);
+      if constexpr (kAffine) {
+        StoredReal* Cq = p.C[q].data();
+        for (int e = 0; e < 9; ++e) Cq[e] = static_cast<StoredReal>(out[9 + e][l]);
+      }
+    }
   if (count == kLanes) {
     // Velocities widened to double in lanes and stored three axes at a time.
     const hn::ScalableTag<double> dd;
