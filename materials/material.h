@@ -1,6 +1,7 @@
 #pragma once
 /// \file The interface every constitutive model implements, and the parameter table it declares.
 
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <memory>
@@ -46,8 +47,17 @@ using ParamValues = std::map<std::string, double>;
 
 /// Per-object facts a material group needs besides its own parameters.
 struct GroupInfo {
+  GroupInfo() = default;
+  /// The facts of a group of `count` particles of density `density`; `x` and `seed` as below.
+  GroupInfo(double density, std::size_t count, std::span<const Vec3> x = {}, std::uint64_t seed = 1)
+      : density(density), count(count), x(x), seed(seed) {}
+
   double density = 0;  ///< Reference mass density rho0, kg/m^3.
   std::size_t count = 0;  ///< Number of particles in the group's range.
+  /// Positions of the group's particles as sampled (empty when a group is rebuilt to take
+  /// restored state, e.g. after particle migration).
+  std::span<const Vec3> x;
+  std::uint64_t seed = 1;  ///< The scene's simulation.seed, for seeded initial state.
 };
 
 /// A model the engine can also run in float SIMD lanes (engine/step/simd/stress_simd.h), named

@@ -51,19 +51,25 @@ MaterialInfo snow_info() {
   ParamSpec jp{"min_Jp", "", "smallest plastic volume ratio Jp (0: no clamp); bounds hardening",
                false, 0, 0, 1, false, true};
   ParamSpec spread{"initial_Jp_spread", "",
-                   "s: Jp starts uniform in [1 - s, 1 + s] per particle (hardness varies by "
-                   "exp(-xi (Jp - 1))); 0: uniform snow",
+                   "s: Jp starts in [1 - s, 1 + s] (hardness varies by exp(-xi (Jp - 1))); "
+                   "0: uniform snow",
                    false, 0, 0, 0.5};
-  params.insert(params.end(), {tc, ts, xi, jp, spread});
+  ParamSpec corr{"initial_Jp_correlation", "m",
+                 "l: Jp starts at 1 + s n(x / l), n a smooth noise in [-1, 1] seeded by "
+                 "simulation.seed (weak zones ~l wide); 0: per particle",
+                 false, 0, 0, 1e300};
+  params.insert(params.end(), {tc, ts, xi, jp, spread, corr});
   return {"snow", "fixed corotated with hardening and singular-value clamping (plastic)",
           "Stomakhin et al. 2013, A material point method for snow simulation", params, true,
           [](const ParamValues& v, const GroupInfo& g) {
             const Lame l = lame_from_young(v.at("E"), v.at("nu"));
             const materials::SnowPlasticity plastic{
                 v.at("critical_compression"), v.at("critical_stretch"), v.at("hardening"),
-                v.at("min_Jp"), v.at("initial_Jp_spread")};
+                v.at("min_Jp"), v.at("initial_Jp_spread"),
+                v.at("initial_Jp_correlation")};
             return std::make_unique<materials::SnowGroup>(
-                materials::FixedCorotated{l.mu, l.lambda}, plastic, g.density, g.count);
+                materials::FixedCorotated{l.mu, l.lambda}, plastic, g.density, g.count, g.x,
+                g.seed);
           }};
 }
 

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "engine/core/reduce.h"
@@ -26,7 +27,10 @@ struct SnowPlasticity {
   Real critical_stretch = 7.5e-3;      ///< theta_s: elastic singular values <= 1 + theta_s.
   Real hardening = 10;                 ///< xi: mu, lambda scale by exp(xi (1 - Jp)).
   Real min_Jp = 0;                     ///< Jp is kept >= this (0: no clamp, the paper's model).
-  Real initial_Jp_spread = 0;          ///< Jp starts uniform in [1 - this, 1 + this] (0: Jp = 1).
+  Real initial_Jp_spread = 0;          ///< Jp starts in [1 - this, 1 + this] (0: Jp = 1).
+  /// l, m: with initial_Jp_spread, Jp varies smoothly in space over this length (weak zones
+  /// a few cells wide); 0: independently per particle.
+  Real initial_Jp_correlation = 0;
 
   /// Moves the part of Fe outside the clamp range into the plastic part (section 7):
   /// Fe = U clamp(Sigma) V^T and Jp *= det(Sigma) / det(clamp(Sigma)), so det(Fe) Jp is kept
@@ -57,16 +61,49 @@ struct SnowPlasticity {
   /// Hardening factor exp(xi (1 - Jp)) applied to mu and lambda.
   Real hardening_factor(Real Jp) const { return std::exp(hardening * (1 - Jp)); }
 
-  /// Starting Jp of the particle with index `index` in its group: 1, or with a spread s > 0,
-  /// 1 + s (2 u - 1) for u uniform in [0, 1) from a hash of the index, so the snow's hardness
-  /// exp(xi (1 - Jp)) varies from particle to particle (deterministic, any thread count).
-  Real initial_Jp(std::uint64_t index) const {
+  /// Starting Jp of the particle with index `index` in its group, sampled at `x` (m): 1, or
+  /// with a spread s > 0, 1 + s n, so the snow's hardness exp(xi (1 - Jp)) varies by up to
+  /// exp(xi s) either way. With a correlation length l > 0, n = value_noise(x / l, seed), a
+  /// smooth field in [-1, 1] (weak zones of size ~l); else n = 2 u - 1 for u uniform in [0, 1)
+  /// from a hash of the index. Deterministic for any thread count.
+  Real initial_Jp(std::uint64_t index, const Vec3& x = Vec3::Zero(), std::uint64_t seed = 1) const {
     if (initial_Jp_spread == 0) return 1;
-    std::uint64_t z = index * 0x9e3779b97f4a7c15ull + 0x632be59bd9b4e019ull;  // splitmix64
+    if (initial_Jp_correlation > 0)
+      return 1 + initial_Jp_spread * value_noise(x / initial_Jp_correlation, seed);
+    return 1 + initial_Jp_spread * (2 * unit_hash(index * 0x9e3779b97f4a7c15ull) - 1);
+  }
+
+  /// The splitmix64 finaliser of z + a constant: a well-mixed 64-bit hash.
+  static std::uint64_t mix(std::uint64_t z) {
+    z += 0x632be59bd9b4e019ull;
     z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
     z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    const Real u = static_cast<Real>((z ^ (z >> 31)) >> 11) * 0x1.0p-53;
-    return 1 + initial_Jp_spread * (2 * u - 1);
+    return z ^ (z >> 31);
+  }
+
+  /// A uniform number in [0, 1) from a 64-bit key.
+  static Real unit_hash(std::uint64_t z) { return static_cast<Real>(mix(z) >> 11) * 0x1.0p-53; }
+
+  /// Value noise in [-1, 1] at u (in lattice units): uniform values at the integer lattice
+  /// points, from a hash of (seed, i, j, k), blended with the smoothstep weights 3t^2 - 2t^3
+  /// (Perlin 1985's lattice noise with values instead of gradients; continuous with a
+  /// continuous gradient, correlated over about one lattice spacing).
+  static Real value_noise(const Vec3& u, std::uint64_t seed) {
+    const Vec3 f = u.array().floor();
+    const Vec3 t = u - f;
+    const Vec3 w = t.array().square() * (3 - 2 * t.array());
+    Real n = 0;
+    for (int c = 0; c < 8; ++c) {
+      std::uint64_t key = mix(seed);
+      Real weight = 1;
+      for (int a = 0; a < 3; ++a) {
+        const int bit = (c >> a) & 1;
+        key = mix(key ^ static_cast<std::uint64_t>(static_cast<std::int64_t>(f[a]) + bit));
+        weight *= bit ? w[a] : 1 - w[a];
+      }
+      n += weight * (2 * unit_hash(key) - 1);
+    }
+    return n;
   }
 };
 
@@ -74,11 +111,15 @@ struct SnowPlasticity {
 class SnowGroup final : public MaterialGroup {
  public:
   /// `elastic` holds the unhardened mu0 and lambda0; `count` particles start with
-  /// plastic.initial_Jp(p) (1 unless initial_Jp_spread > 0).
+  /// plastic.initial_Jp(p, x[p], seed) (1 unless initial_Jp_spread > 0). `x`, the sampled
+  /// positions, may be empty (a group rebuilt to take restored state): Jp then starts at 1.
   SnowGroup(const FixedCorotated& elastic, const SnowPlasticity& plastic, Real rho0,
-            std::size_t count)
-      : elastic_(elastic), plastic_(plastic), rho0_(rho0), Jp_(count) {
-    for (std::size_t p = 0; p < count; ++p) Jp_[p] = plastic_.initial_Jp(p);
+            std::size_t count, std::span<const Vec3> x = {}, std::uint64_t seed = 1)
+      : elastic_(elastic), plastic_(plastic), rho0_(rho0), Jp_(count, 1) {
+    const bool spatial = plastic_.initial_Jp_correlation > 0;
+    if (spatial && x.size() != count) return;
+    for (std::size_t p = 0; p < count; ++p)
+      Jp_[p] = plastic_.initial_Jp(p, spatial ? x[p] : Vec3::Zero(), seed);
   }
 
   void compute_stress(std::span<const StoredMat3> F, Real volume0,

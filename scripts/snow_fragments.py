@@ -3,7 +3,8 @@
 them: particles binned into cubic cells of edge CELL (m), face-sharing occupied cells joined.
 
 Usage: /usr/bin/python3 scripts/snow_fragments.py RUN_DIR FRAME CELL
-Prints the fragment count, the largest fragment's share and the largest sizes of frame FRAME;
+Prints the fragment count, the largest fragment's share and the largest sizes of frame FRAME,
+and whether it meets the shatter criterion (docs/validation.md, section 17);
 then, from RUN_DIR/checkpoint.h5 (the last frame's state), the share of particles with Jp > 1,
 Jp's range, and the "intact pieces": the fragments of the particles whose hardness
 exp(xi (1 - Jp)) is still at least 1% of the virgin snow's (Jp <= 1 + ln(100) / 10 for
@@ -35,6 +36,9 @@ sizes = fragments(x)
 count = len(sizes)
 print(f"frame {frame} (t = {t:.4f} s): {len(x)} particles, {count} fragments, largest "
       f"{sizes[0] / len(x):.1%}, sizes {sizes[:6].tolist()}")
+# The shatter criterion of docs/validation.md section 17 (test::shattered).
+shattered = sizes[0] < 0.6 * len(x) and (sizes >= 0.02 * len(x)).sum() >= 3
+print(f"shatters (largest < 60%, >= 3 fragments of >= 2%): {'yes' if shattered else 'no'}")
 checkpoint = os.path.join(run, "checkpoint.h5")
 if os.path.exists(checkpoint):
     with h5py.File(checkpoint) as f:

@@ -159,7 +159,8 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     // A factory may reject a combination of parameters by throwing (docs/materials.md).
     std::unique_ptr<MaterialGroup> group;
     try {
-      group = mat->create(od.params, GroupInfo{density, n});
+      group = mat->create(
+          od.params, GroupInfo{density, n, {P.x.data() + info.first, n}, scene.simulation.seed});
     } catch (const std::exception& e) {
       throw SceneError(od.loc, key, "material '" + od.material + "' rejects the parameters of " +
                                         "object '" + od.name + "': " + e.what());

@@ -44,7 +44,8 @@ SceneDesc bench_scene(const std::string& material, long particles, double domain
   o.params = {{"E", material == "snow" ? 1.4e5 : 1e5}, {"nu", 0.3}};
   if (material == "snow")
     o.params.insert({{"critical_compression", 2.5e-2}, {"critical_stretch", 7.5e-3},
-                     {"hardening", 10}, {"min_Jp", 0}, {"initial_Jp_spread", 0}});
+                     {"hardening", 10}, {"min_Jp", 0}, {"initial_Jp_spread", 0},
+                     {"initial_Jp_correlation", 0}});
   s.objects.push_back(o);
   WallDesc floor;
   floor.point = Vec3(0, 4 * h, 0);

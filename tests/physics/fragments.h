@@ -62,4 +62,11 @@ inline std::size_t count_pieces(const std::vector<std::size_t>& sizes, std::size
   });
 }
 
+/// The shatter criterion (docs/validation.md, section 17): of the fragments `sizes` of
+/// `total` points, the largest holds less than 60% and at least 3 hold 2% or more each.
+inline bool shattered(const std::vector<std::size_t>& sizes, std::size_t total) {
+  return !sizes.empty() && static_cast<double>(sizes[0]) < 0.6 * static_cast<double>(total) &&
+         count_pieces(sizes, total, 0.02) >= 3;
+}
+
 }  // namespace mpm::test

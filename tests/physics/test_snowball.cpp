@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <sstream>
 #include <vector>
 
@@ -24,6 +25,12 @@ TEST_CASE("fragment_sizes: face-connected cells make one fragment, a gap of a ce
   x.emplace_back(0.75, 0.15, 0.05);
   CHECK(test::fragment_sizes(x, 0.1) == std::vector<std::size_t>{16, 2, 1});
   CHECK(test::count_pieces(test::fragment_sizes(x, 0.1), x.size(), 0.1) == 2);
+  CHECK_FALSE(test::shattered(test::fragment_sizes(x, 0.1), x.size()));  // 84% in one
+  // Two more pieces, 16 and 6 points, a cell away: the largest of 41 points holds 39%.
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) x.emplace_back(0.05 + 0.1 * i, 0.05 + 0.1 * j, 0.55);
+  for (int i = 0; i < 6; ++i) x.emplace_back(0.05 + 0.1 * i, 0.55, 0.55);
+  CHECK(test::shattered(test::fragment_sizes(x, 0.1), x.size()));
 }
 
 namespace {
@@ -159,4 +166,75 @@ TEST_CASE("initial_Jp_spread: a deterministic spread of the starting Jp", "[phys
   double mean = 0;
   for (const Real Jp : a.Jp()) mean += Jp / 20000.0;
   CHECK(mean == Approx(1).margin(0.005));  // uniform in [0.8, 1.2]: std of the mean 8e-4
+}
+
+TEST_CASE("initial_Jp_correlation: a smooth, seeded hardness field", "[physics][snow]") {
+  const materials::FixedCorotated elastic{5.8e4, 3.9e4};
+  materials::SnowPlasticity plastic;
+  plastic.initial_Jp_spread = 0.3;
+  plastic.initial_Jp_correlation = 0.05;  // m
+  // Points on a 1 mm lattice along x, in 800 rows 0.2 m apart in y and z.
+  std::vector<Vec3> x;
+  for (int row = 0; row < 800; ++row)
+    for (int i = 0; i < 200; ++i) x.emplace_back(1e-3 * i, 0.2 * (row % 20), 0.2 * (row / 20));
+  const materials::SnowGroup a(elastic, plastic, 400, x.size(), x, 7);
+  const materials::SnowGroup b(elastic, plastic, 400, x.size(), x, 7);
+  const materials::SnowGroup c(elastic, plastic, 400, x.size(), x, 8);
+  CHECK(a.Jp() == b.Jp());  // the same positions and seed give the same field
+  CHECK(a.Jp() != c.Jp());  // another seed, another field
+  const auto [lo, hi] = std::minmax_element(a.Jp().begin(), a.Jp().end());
+  CHECK(*lo >= 0.7);
+  CHECK(*hi <= 1.3);
+  // Smooth: per axis |dn/dx| <= 2 * 1.5 / l (values in [-1, 1], smoothstep slope <= 1.5), so
+  // points 1 mm apart differ by at most 0.3 * 3 * 1e-3 / 0.05 = 0.018 in Jp; independent
+  // values per particle would differ by up to 0.6.
+  double step = 0;
+  for (std::size_t p = 0; p + 1 < x.size(); ++p)
+    if (p % 200 != 199) step = std::max(step, std::abs(a.Jp()[p + 1] - a.Jp()[p]));
+  CHECK(step <= 0.018);
+  // Correlated over ~l: Jp at x and x + 2 mm nearly equal, at x and x + 0.1 m (2 l, so no
+  // lattice value in common) independent. Correlations over 800 rows x 100 pairs (about 2
+  // independent lattice cells per row, so the far estimate's standard error is about 0.025).
+  auto correlation = [&](int offset) {
+    double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0, n = 0;
+    for (std::size_t row = 0; row < 800; ++row)
+      for (int i = 0; i + offset < 200; i += 2) {
+        const double u = a.Jp()[row * 200 + i] - 1, v = a.Jp()[row * 200 + i + offset] - 1;
+        sa += u, sb += v, saa += u * u, sbb += v * v, sab += u * v, n += 1;
+      }
+    const double cov = sab / n - sa / n * sb / n;
+    return cov / std::sqrt((saa / n - sa * sa / n / n) * (sbb / n - sb * sb / n / n));
+  };
+  const double near = correlation(2), far = correlation(100);
+  INFO("correlation at 2 mm " << near << ", at 100 mm " << far);
+  CHECK(near > 0.95);
+  CHECK(std::abs(far) < 0.1);
+}
+
+TEST_CASE("initial_Jp_correlation from a scene: Jp follows the sampled positions",
+          "[physics][snow]") {
+  auto scene_text = [](int seed) {
+    return "simulation:\n  frames: 1\n  dt: 1.0e-4\n  seed: " + std::to_string(seed) +
+           "\ngrid:\n  max: [1, 1, 1]\n  dims: 32\nobjects:\n  - name: ball\n    mesh: " +
+           (test::source_dir() / "scenes/meshes/sphere.obj").string() +
+           "\n    scale: 0.1\n    offset: [0.5, 0.5, 0.5]\n    density: 400\n" + kPaperSnow +
+           "    initial_Jp_spread: 0.2\n    initial_Jp_correlation: 0.05\n";
+  };
+  const SceneDesc scene = test::scene_from(scene_text(3));
+  const auto sim = Simulation::create(scene, builtin_registry());
+  const auto& snow = dynamic_cast<const materials::SnowGroup&>(*sim->materials()[0].material);
+  materials::SnowPlasticity plastic;
+  plastic.initial_Jp_spread = 0.2;
+  plastic.initial_Jp_correlation = 0.05;
+  std::size_t soft = 0, hard = 0;
+  for (std::size_t p = 0; p < snow.Jp().size(); ++p) {
+    REQUIRE(snow.Jp()[p] == plastic.initial_Jp(p, sim->particles().x[p], 3));
+    soft += snow.Jp()[p] > 1.05, hard += snow.Jp()[p] < 0.95;
+  }
+  INFO(soft << " soft and " << hard << " hard of " << snow.Jp().size());
+  CHECK(soft > snow.Jp().size() / 20);  // weak and hard zones both present in the ball
+  CHECK(hard > snow.Jp().size() / 20);
+  const auto other = Simulation::create(test::scene_from(scene_text(4)), builtin_registry());
+  CHECK(dynamic_cast<const materials::SnowGroup&>(*other->materials()[0].material).Jp() !=
+        snow.Jp());
 }
