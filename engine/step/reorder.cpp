@@ -33,6 +33,12 @@ void reorder_particles(std::span<const ReorderRange> ranges, ParticleOrder& orde
   for (std::size_t q = 0; q < n; ++q) {
     while (dest[q] != q) {
       const std::uint32_t d = dest[q];
+      // The next step swaps q with dest[d]: start loading that particle now.
+      const std::uint32_t next = dest[d];
+      __builtin_prefetch(&p.x[next], 1);
+      __builtin_prefetch(&p.v[next], 1);
+      __builtin_prefetch(&p.F[next], 1);
+      if (apic) __builtin_prefetch(&p.C[next], 1);
       std::swap(p.x[q], p.x[d]);
       std::swap(p.v[q], p.v[d]);
       std::swap(p.F[q], p.F[d]);
