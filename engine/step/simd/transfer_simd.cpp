@@ -207,22 +207,21 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
 }
 
 /// What the scatter needs of the particles order[b0, b1) (kLanes of them, clamped to the
-/// range's end), one row or one lane per particle: the 1D weights and their gradients (from
-/// the double stencil, rounded once), the stencil base, and the factors of the node values,
-/// computed in lanes (one particle per lane) from the float-stored C and stress, so the
-/// per-particle loop only loads them.
+/// range's end), one row or one lane per particle: the 1D weights (from the double stencil,
+/// rounded once), the stencil base, and the per-axis tables of the node momentum, computed
+/// in lanes (one particle per lane) from the float-stored C and stress, so the per-particle
+/// loop only loads them.
 template <int N>
 struct ScatterBatch {
-  std::size_t b0 = 0, b1 = 0;               ///< The batch is order[b0, b1).
+  std::size_t b0 = 0, b1 = 0;  ///< The batch is order[b0, b1).
   /// w[axis][N l + k]: lane l's 1D weight of node base + k (N per lane, interleaved; padded
   /// so that a full vector loaded at N l stays inside).
   alignas(64) float w[3][(N + 1) * kLanes] = {};
-  alignas(64) float dw[3][(N + 1) * kLanes] = {};  ///< The weights' derivatives, 1/m, as w.
-  alignas(64) std::int32_t base[3][kLanes];   ///< The stencil's first node per axis and lane.
-  alignas(64) float m[kLanes];              ///< Particle mass, kg.
-  alignas(64) float a[3][kLanes];           ///< m v + Q (x_base - x_p): momentum at node 0.
-  alignas(64) float c[3][3][kLanes];        ///< c[e][a] = Q_ea h_a: momentum per node index.
-  alignas(64) float s[3][3][kLanes];        ///< s[e][a] = dt (-V0 tau)_ea: impulse per grad w.
+  /// t[axis][e][N l + k], the momentum tables (rows as w): component e of the momentum at
+  /// node (i, j, k) is t[0][e](i) wy wz + wx t[1][e](j) wz + wx wy t[2][e](k).
+  alignas(64) float t[3][3][(N + 1) * kLanes] = {};
+  alignas(64) std::int32_t base[3][kLanes];  ///< The stencil's first node per axis and lane.
+  alignas(64) float m[kLanes];               ///< Particle mass, kg.
 };
 
 /// Fills `pb` with order[b0, min(b0 + kLanes, end)); `sb` holds their stresses after.
@@ -294,54 +293,63 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
       hn::Store(hn::DemoteTo(dh, corner_a), dh, corner[a] + h);
       hn::Store(hn::DemoteTo(dih, b), dih, pb.base[a] + h);
     }
-  // From one lane per particle to N consecutive floats per particle, by interleaved stores.
-  for (int a = 0; a < 3; ++a) {
-    store_interleaved<N>(wl[a], pb.w[a]);
-    store_interleaved<N>(dwl[a], pb.dw[a]);
-  }
-  // Momentum at node (i, j, k): m v + Q (x_base + (i, j, k) h - x_p) = a + i c0 + j c1 + k c2,
-  // Q = m C (APIC) or m C + dt (-V0 tau) D^-1 (MLS, Hu et al. 2018, eq. 29).
+  // Momentum at node (i, j, k), with w = wx wy wz and grad w = (dwx wy wz, wx dwy wz, wx wy
+  // dwz): w (m v + Q (x_base + (i, j, k) h - x_p)) + dt (-V0 tau) grad w
+  //   = w (a + i c0 + j c1 + k c2) + s0 dwx wy wz + s1 wx dwy wz + s2 wx wy dwz,
+  // Q = m C (APIC) or m C + dt (-V0 tau) D^-1 (MLS, Hu et al. 2018, eq. 29), a = m v + Q
+  // (x_base - x_p), c_b = Q_.b h_b, s_b = dt (-V0 tau)_.b (no s for MLS, folded into Q).
+  // Each term has one 1D factor that is not a weight, so per component e
+  //   = X(i) wy wz + wx Y(j) wz + wx wy Z(k), X(i) = wx(i) (a + i c0) + dwx(i) s0,
+  //     Y(j) = wy(j) j c1 + dwy(j) s1, Z(k) = wz(k) k c2 + dwz(k) s2:
+  // N-entry tables per particle, computed here in lanes.
   const VF m = hn::Load(d, pb.m);
   const Vec3 inv_D = KernelTraits<K>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
+  alignas(64) float tl[3][N][kLanes];
   for (int e = 0; e < 3; ++e) {
     VF a = hn::Mul(m, hn::Load(d, vel[e]));
+    VF c[3], s[3];
     for (int b = 0; b < 3; ++b) {
       const VF tau = hn::Load(d, sb.tau[3 * b + e]);  // column-major, as stored
+      c[b] = hn::Zero(d);
       if constexpr (kAffine) {
         VF Q = hn::Mul(m, hn::Load(d, cm[e][b]));
         if constexpr (T == Transfer::mls)
           Q = hn::MulAdd(hn::Set(d, static_cast<float>(dt * inv_D[b])), tau, Q);
         a = hn::MulAdd(Q, hn::Load(d, corner[b]), a);
-        hn::Store(hn::Mul(Q, hn::Set(d, static_cast<float>(g.h[b]))), d, pb.c[e][b]);
+        c[b] = hn::Mul(Q, hn::Set(d, static_cast<float>(g.h[b])));
       }
-      hn::Store(hn::Mul(hn::Set(d, static_cast<float>(dt)), tau), d, pb.s[e][b]);
+      s[b] = T == Transfer::mls ? hn::Zero(d) : hn::Mul(hn::Set(d, static_cast<float>(dt)), tau);
     }
-    hn::Store(a, d, pb.a[e]);
+    for (int b = 0; b < 3; ++b)
+      for (int k = 0; k < N; ++k) {
+        const VF u = b == 0 ? hn::MulAdd(hn::Set(d, static_cast<float>(k)), c[0], a)
+                            : hn::Mul(hn::Set(d, static_cast<float>(k)), c[b]);
+        hn::Store(hn::MulAdd(hn::Load(d, wl[b][k]), u, hn::Mul(hn::Load(d, dwl[b][k]), s[b])), d,
+                  tl[b][k]);
+      }
+    for (int b = 0; b < 3; ++b) store_interleaved<N>(tl[b], pb.t[b][e]);
   }
+  // From one lane per particle to N consecutive floats per particle, by interleaved stores.
+  for (int a = 0; a < 3; ++a) store_interleaved<N>(wl[a], pb.w[a]);
 }
 
 /// Scatters order[begin, end) (the grid cleared): one lane per stencil node. For each
-/// particle the node values are affine in the node's (i, j, k) and products of the 1D
-/// weights, which are looked up per lane from three small tables. The particles' own factors
-/// come from ScatterBatch, kLanes particles at a time.
+/// particle the node values are sums of products of three 1D factors (weights and the
+/// per-axis momentum tables of ScatterBatch, made kLanes particles at a time), each looked up
+/// per lane from an N-entry row.
 template <Kernel K, Transfer T>
 void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t begin, std::size_t end,
                    Real dt, std::span<const BatchModel> fold, Grid& g) {
   using Traits = KernelTraits<K>;
   constexpr int N = Traits::kNodes, kNodes = N * N * N;
   constexpr int NV = static_cast<int>((kNodes + kLanes - 1) / kLanes);  // vectors per stencil
-  constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
-  constexpr bool kStress = T != Transfer::mls;  // MLS folds the stress into the affine term
   const DF d;
-  // Per lane: the node's (i, j, k), as floats and as table indices (padding lanes: node 0,
-  // summed but never written).
-  alignas(64) float fi[NV * kLanes], fj[NV * kLanes], fk[NV * kLanes];
+  // Per lane: the node's (i, j, k) as table indices (padding lanes: node 0, summed but never
+  // written).
   alignas(64) std::int32_t ti[NV * kLanes], tj[NV * kLanes], tk[NV * kLanes];
   for (int n = 0; n < NV * static_cast<int>(kLanes); ++n) {
     const int m = n < kNodes ? n : 0;
     ti[n] = m / (N * N), tj[n] = (m / N) % N, tk[n] = m % N;
-    fi[n] = static_cast<float>(ti[n]), fj[n] = static_cast<float>(tj[n]);
-    fk[n] = static_cast<float>(tk[n]);
   }
   alignas(64) float out[4][NV * kLanes];
   StressBatch sb;
@@ -356,51 +364,26 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
       if (q >= pb.b1) fill_batch<K, T>(p, ord, fold, g, dt, q, end, sb, pb);
       const std::size_t l = q - pb.b0;
       base = Vec3i(pb.base[0][l], pb.base[1][l], pb.base[2][l]);
-      // Lanes 0 to N - 1 hold the particle's weights (the rest, its neighbours', are never
-      // looked up).
-      const VF W0 = hn::LoadU(d, pb.w[0] + N * l), W1 = hn::LoadU(d, pb.w[1] + N * l),
-               W2 = hn::LoadU(d, pb.w[2] + N * l);
-      const VF D0 = hn::LoadU(d, pb.dw[0] + N * l), D1 = hn::LoadU(d, pb.dw[1] + N * l),
-               D2 = hn::LoadU(d, pb.dw[2] + N * l);
-      const VF mv = hn::Set(d, pb.m[l]);
-      VF av[3], c[3][3], S[3][3];
-      for (int e = 0; e < 3; ++e) {
-        av[e] = hn::Set(d, pb.a[e][l]);
-        for (int b = 0; b < 3; ++b) {
-          if constexpr (kAffine) c[e][b] = hn::Set(d, pb.c[e][b][l]);
-          if constexpr (kStress) S[e][b] = hn::Set(d, pb.s[e][b][l]);
-        }
+      // Lanes 0 to N - 1 hold the particle's weights and tables (the rest, its neighbours',
+      // are never looked up).
+      VF W[3], X[3][3];
+      for (int b = 0; b < 3; ++b) {
+        W[b] = hn::LoadU(d, pb.w[b] + N * l);
+        for (int e = 0; e < 3; ++e) X[b][e] = hn::LoadU(d, pb.t[b][e] + N * l);
       }
+      const VF mv = hn::Set(d, pb.m[l]);
       for (int v = 0; v < NV; ++v) {
         const auto Ii = hn::SetTableIndices(d, ti + v * kLanes);
         const auto Ij = hn::SetTableIndices(d, tj + v * kLanes);
         const auto Ik = hn::SetTableIndices(d, tk + v * kLanes);
-        const VF wx = hn::TableLookupLanes(W0, Ii), wy = hn::TableLookupLanes(W1, Ij),
-                 wz = hn::TableLookupLanes(W2, Ik);
-        const VF wyz = hn::Mul(wy, wz), w = hn::Mul(wx, wyz);
-        acc[0][v] = hn::MulAdd(mv, w, acc[0][v]);
-        VF gx, gy, gz;
-        if constexpr (kStress) {
-          gx = hn::Mul(hn::TableLookupLanes(D0, Ii), wyz);
-          gy = hn::Mul(wx, hn::Mul(hn::TableLookupLanes(D1, Ij), wz));
-          gz = hn::Mul(hn::Mul(wx, wy), hn::TableLookupLanes(D2, Ik));
-        }
-        const VF I = hn::Load(d, fi + v * kLanes), J = hn::Load(d, fj + v * kLanes),
-                 Kk = hn::Load(d, fk + v * kLanes);
+        const VF wx = hn::TableLookupLanes(W[0], Ii), wy = hn::TableLookupLanes(W[1], Ij),
+                 wz = hn::TableLookupLanes(W[2], Ik);
+        const VF wyz = hn::Mul(wy, wz), wxz = hn::Mul(wx, wz), wxy = hn::Mul(wx, wy);
+        acc[0][v] = hn::MulAdd(mv, hn::Mul(wx, wyz), acc[0][v]);
         for (int e = 0; e < 3; ++e) {
-          VF t = av[e];
-          if constexpr (kAffine) {
-            t = hn::MulAdd(I, c[e][0], t);
-            t = hn::MulAdd(J, c[e][1], t);
-            t = hn::MulAdd(Kk, c[e][2], t);
-          }
-          VF sum = hn::MulAdd(w, t, acc[1 + e][v]);
-          if constexpr (kStress) {
-            sum = hn::MulAdd(gx, S[e][0], sum);
-            sum = hn::MulAdd(gy, S[e][1], sum);
-            sum = hn::MulAdd(gz, S[e][2], sum);
-          }
-          acc[1 + e][v] = sum;
+          VF sum = hn::MulAdd(hn::TableLookupLanes(X[0][e], Ii), wyz, acc[1 + e][v]);
+          sum = hn::MulAdd(hn::TableLookupLanes(X[1][e], Ij), wxz, sum);
+          acc[1 + e][v] = hn::MulAdd(hn::TableLookupLanes(X[2][e], Ik), wxy, sum);
         }
       }
     }
