@@ -14,6 +14,7 @@ packages=(
   xvfb xauth libgl1-mesa-dri         # xvfb-run pvpython: ParaView screenshots without a display
   python3-h5py python3-matplotlib python3-yaml  # scripts/plot_frames.py (run by /usr/bin/python3)
   libopenmpi-dev openmpi-bin libhdf5-openmpi-dev  # MPI: mpirun -np N mpm run (docs/distributed.md)
+  time                               # GNU time: scripts/ab_time.sh
 )
 
 missing=()
