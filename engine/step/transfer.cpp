@@ -1,7 +1,6 @@
 #include "engine/step/transfer.h"
 
 #include <algorithm>
-#include <cassert>
 #include <cmath>
 #include <stdexcept>
 
@@ -40,34 +39,12 @@ void activate_touched_blocks(const ParticleOrder& ord, const Vec3i& lo, const Ve
                        Vec3i(hi.x() >> B, hi.y() >> B, hi.z() >> B));
 }
 
-/// floor(y) as an int for |y| < 2^31: std::floor's value in three instructions (std::floor is
-/// a long sequence on the baseline x86-64 target, which has no rounding instruction).
-inline int floor_int(Real y) {
-  const int t = static_cast<int>(y);
-  return t - (y < t);
-}
-
-/// stencil_base<K> (KernelTraits<K>::base per axis) with floor_int, for positions inside the
-/// grid: the sort's two passes over the particles spend much of their time on the floors.
-template <Kernel K>
-Vec3i base_cell(const Vec3& x, const Vec3& origin, const Vec3& inv_h) {
-  constexpr Real kShift = K == Kernel::quadratic ? Real(0.5) : Real(0);
-  constexpr int kFirst = K == Kernel::cubic ? -1 : 0;
-  return {floor_int((x[0] - origin[0]) * inv_h[0] - kShift) + kFirst,
-          floor_int((x[1] - origin[1]) * inv_h[1] - kShift) + kFirst,
-          floor_int((x[2] - origin[2]) * inv_h[2] - kShift) + kFirst};
-}
-
 /// The counting sort of sort_particles for kernel K (dispatched once, not per particle).
 template <Kernel K>
 void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
   const std::size_t n = p.size();
   const Vec3 origin = grid.origin, inv_h = grid.inv_h;
-  const auto base = [&](std::size_t i) {
-    const Vec3i b = base_cell<K>(p.x[i], origin, inv_h);
-    assert(b == stencil_base<K>(p.x[i], origin, inv_h));
-    return b;
-  };
+  const auto base = [&](std::size_t i) { return stencil_base<K>(p.x[i], origin, inv_h); };
   // Bounds of the stencil bases: the active nodes are [lo, hi + N - 1].
   int lx = 1 << 30, ly = 1 << 30, lz = 1 << 30, hx = -(1 << 30), hy = hx, hz = hx;
   const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(n);
