@@ -171,14 +171,10 @@ void write_connectivity(const std::filesystem::path& file, std::size_t n) {
     if (f.id < 0) throw std::runtime_error("cannot create '" + tmp.string() + "'");
     const hsize_t dims[1] = {n};
     hdf5::Handle space{H5Screate_simple(1, dims, nullptr), H5Sclose};
-    // No modification times: the same run gives byte-identical files.
-    hdf5::Handle props{H5Pcreate(H5P_DATASET_CREATE), H5Pclose};
-    H5Pset_obj_track_times(props.id, false);
-    hdf5::Handle set{H5Dcreate2(f.id, "connectivity", H5T_STD_I32LE, space.id, H5P_DEFAULT,
-                            props.id, H5P_DEFAULT),
-                 H5Dclose};
-    if (set.id < 0 || (n > 0 && H5Dwrite(set.id, H5T_NATIVE_INT32, H5S_ALL, H5S_ALL,
-                                         H5P_DEFAULT, values.data()) < 0) ||
+    hdf5::Handle set{hdf5::create_dataset(f.id, "connectivity", H5T_STD_I32LE, space.id),
+                     H5Dclose};
+    if ((n > 0 && H5Dwrite(set.id, H5T_NATIVE_INT32, H5S_ALL, H5S_ALL, H5P_DEFAULT,
+                           values.data()) < 0) ||
         H5Fflush(f.id, H5F_SCOPE_GLOBAL) < 0)
       throw std::runtime_error("cannot write '" + tmp.string() + "'");
   }

@@ -83,6 +83,24 @@ void lane_weights(D d, V x, V* w, V* dw) {
   }
 }
 
+/// The stencil of kernel K along axis `a` for the positions x (m) in double lanes, as
+/// KernelTraits<K>::base and make_stencil compute it: stores the base node (int) at `base` and
+/// the offset of the base node from the particle, x_base - x (m, rounded to float once), at
+/// `corner`; returns fx - base (cells), from which the caller takes the weights.
+template <Kernel K, class DD, class VD = hn::Vec<DD>>
+VD stencil_lanes(DD dd, VD x, const Grid& g, int a, float* corner, std::int32_t* base) {
+  const hn::Rebind<float, DD> dh;
+  const hn::Rebind<std::int32_t, DD> dih;
+  constexpr double kShift = K == Kernel::quadratic ? 0.5 : 0.0;
+  constexpr double kFirst = K == Kernel::cubic ? -1.0 : 0.0;
+  const VD fx = hn::Mul(hn::Sub(x, hn::Set(dd, g.origin[a])), hn::Set(dd, g.inv_h[a]));
+  const VD b = hn::Add(hn::Floor(hn::Sub(fx, hn::Set(dd, kShift))), hn::Set(dd, kFirst));
+  const VD x_base = hn::MulAdd(b, hn::Set(dd, g.h[a]), hn::Set(dd, g.origin[a]));
+  hn::Store(hn::DemoteTo(dh, hn::Sub(x_base, x)), dh, corner);
+  hn::Store(hn::DemoteTo(dih, b), dih, base);
+  return hn::Sub(fx, b);
+}
+
 /// The kLanes float 3x3 matrices at `m` (consecutive, column-major), one per lane:
 /// out[3 c + r] holds M(r, c) of every lane. Two rounds of three-way deinterleaving, in
 /// registers but for one 576-byte pass through the stack written and read as whole vectors:
@@ -149,15 +167,15 @@ struct StressBatch {
   alignas(64) float tau[9][kLanes];  ///< -V0 tau per lane, column-major.
 };
 
-/// Fills `sb` with the stresses of order[b0, min(b0 + kLanes, end)).
+/// Fills `sb` with the stresses of order[b0, min(b0 + kLanes, end)); `consecutive`: they are
+/// kLanes consecutive particles (consecutive_batch), whose F load_matrices reads.
 void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
-                 std::size_t b0, std::size_t end, StressBatch& sb) {
+                 std::size_t b0, std::size_t end, bool consecutive, StressBatch& sb) {
   const DF d;
   sb.b0 = b0;
   sb.b1 = std::min(end, b0 + kLanes);
   const std::size_t count = sb.b1 - b0;
   alignas(64) float in[9][kLanes], mu2[kLanes], lam[kLanes], nv0[kLanes];
-  const bool consecutive = consecutive_batch(ord, b0, count);
   bool any = false;
   for (std::size_t l = 0; l < kLanes; ++l) {
     const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
@@ -242,14 +260,14 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
     hwy::Prefetch(&p.object[pi]);
     if constexpr (kAffine) hwy::Prefetch(&p.C[pi]);
   }
-  fill_stress(p, ord, fold, b0, end, sb);
+  const bool consecutive = consecutive_batch(ord, b0, std::min(end, b0 + kLanes) - b0);
+  fill_stress(p, ord, fold, b0, end, consecutive, sb);
   pb.b0 = sb.b0;
   pb.b1 = sb.b1;
   const std::size_t count = pb.b1 - pb.b0;
   alignas(64) float corner[3][kLanes], vel[3][kLanes], cm[3][3][kLanes];
   alignas(64) float wl[3][N][kLanes], dwl[3][N][kLanes];
   alignas(64) double xs[3][kLanes];
-  const bool consecutive = kAffine && consecutive_batch(ord, b0, count);
   if constexpr (kAffine)
     if (consecutive) {
       VF c[9];
@@ -274,24 +292,16 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
   // it, each value rounded to float once.
   const hn::ScalableTag<double> dd;
   const hn::Rebind<float, decltype(dd)> dh;
-  const hn::Rebind<std::int32_t, decltype(dd)> dih;
-  constexpr double kShift = K == Kernel::quadratic ? 0.5 : 0.0;  // KernelTraits<K>::base
-  constexpr double kFirst = K == Kernel::cubic ? -1.0 : 0.0;
   for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd))
     for (int a = 0; a < 3; ++a) {
-      const auto fx = hn::Mul(hn::Sub(hn::Load(dd, xs[a] + h), hn::Set(dd, g.origin[a])),
-                              hn::Set(dd, g.inv_h[a]));
-      const auto b = hn::Add(hn::Floor(hn::Sub(fx, hn::Set(dd, kShift))), hn::Set(dd, kFirst));
       hn::Vec<decltype(dd)> w[N], dw[N];
-      lane_weights<K>(dd, hn::Sub(fx, b), w, dw);
+      lane_weights<K>(
+          dd, stencil_lanes<K>(dd, hn::Load(dd, xs[a] + h), g, a, corner[a] + h, pb.base[a] + h),
+          w, dw);
       for (int k = 0; k < N; ++k) {
         hn::Store(hn::DemoteTo(dh, w[k]), dh, wl[a][k] + h);
         hn::Store(hn::DemoteTo(dh, hn::Mul(dw[k], hn::Set(dd, g.inv_h[a]))), dh, dwl[a][k] + h);
       }
-      const auto corner_a = hn::Sub(hn::MulAdd(b, hn::Set(dd, g.h[a]), hn::Set(dd, g.origin[a])),
-                                    hn::Load(dd, xs[a] + h));
-      hn::Store(hn::DemoteTo(dh, corner_a), dh, corner[a] + h);
-      hn::Store(hn::DemoteTo(dih, b), dih, pb.base[a] + h);
     }
   // Momentum at node (i, j, k), with w = wx wy wz and grad w = (dwx wy wz, wx dwy wz, wx wy
   // dwz): w (m v + Q (x_base + (i, j, k) h - x_p)) + dt (-V0 tau) grad w
@@ -430,21 +440,12 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     // below), each rounded to float once.
     const hn::ScalableTag<double> dd;
     const hn::Rebind<float, decltype(dd)> dh;
-    const hn::Rebind<std::int32_t, decltype(dd)> dih;
-    constexpr double kShift = K == Kernel::quadratic ? 0.5 : 0.0;  // KernelTraits<K>::base
-    constexpr double kFirst = K == Kernel::cubic ? -1.0 : 0.0;
     for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd)) {
       hn::Vec<decltype(dd)> x[3];
       hn::LoadInterleaved3(dd, p.x[q0 + h].data(), x[0], x[1], x[2]);
-      for (int a = 0; a < 3; ++a) {
-        const auto fx = hn::Mul(hn::Sub(x[a], hn::Set(dd, g.origin[a])), hn::Set(dd, g.inv_h[a]));
-        const auto b = hn::Add(hn::Floor(hn::Sub(fx, hn::Set(dd, kShift))), hn::Set(dd, kFirst));
-        hn::Store(hn::DemoteTo(dh, hn::Sub(fx, b)), dh, dist[a] + h);
-        const auto corner_a =
-            hn::Sub(hn::MulAdd(b, hn::Set(dd, g.h[a]), hn::Set(dd, g.origin[a])), x[a]);
-        hn::Store(hn::DemoteTo(dh, corner_a), dh, corner[a] + h);
-        hn::Store(hn::DemoteTo(dih, b), dih, base[a] + h);
-      }
+      for (int a = 0; a < 3; ++a)
+        hn::Store(hn::DemoteTo(dh, stencil_lanes<K>(dd, x[a], g, a, corner[a] + h, base[a] + h)),
+                  dh, dist[a] + h);
     }
   } else {
     for (std::size_t l = 0; l < kLanes; ++l) {
