@@ -13,6 +13,7 @@ packages=(
   paraview python3-paraview          # the frames.xmf test opens a run with ParaView's reader
   xvfb xauth libgl1-mesa-dri         # xvfb-run pvpython: ParaView screenshots without a display
   python3-h5py python3-matplotlib python3-yaml  # scripts/plot_frames.py (run by /usr/bin/python3)
+  python3-scipy                      # scripts/snow_fragments.py (connected fragments)
   libopenmpi-dev openmpi-bin libhdf5-openmpi-dev  # MPI: mpirun -np N mpm run (docs/distributed.md)
   time                               # GNU time: scripts/ab_time.sh
 )
