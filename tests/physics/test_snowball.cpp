@@ -116,8 +116,9 @@ std::string describe(const Impact& i) {
 TEST_CASE("paper-parameter snow: tensile failure in a glancing throw, compaction head-on",
           "[physics][snow]") {
   // Head-on, the impact pressure (rho c v = 400 * 19.7 * 14, about 110 kPa) is far above the
-  // crushing stress (about E0 theta_c = 3.5 kPa): the ball compacts along the throw (Jp < 1 everywhere, so the
-  // moduli only harden) and nothing is ever stretched past theta_s, so it cannot break.
+  // crushing stress (about E0 theta_c = 3.5 kPa): the ball compacts along the throw (Jp < 1
+  // everywhere, so the moduli only harden) and nothing is ever stretched past theta_s, so it
+  // cannot break.
   // Glancing, the wall's friction shears the ball: shear past the clamp raises Jp (the clamped
   // volume is larger), and the hardening factor exp(xi (1 - Jp)) turns that snow cohesionless.
   // At this resolution (8 cells across) the failed snow still forms one connected body.
