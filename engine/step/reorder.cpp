@@ -5,6 +5,58 @@
 
 namespace mpm {
 
+namespace {
+
+/// How many swaps ahead apply_cycles starts loading a particle: the walk is a chain of
+/// dependent cache misses, so it keeps several in flight.
+constexpr int kLookahead = 6;
+
+/// Starts loading particle q's fields (x, v, F, C) for writing.
+void prefetch_particle(const Particles& p, std::uint32_t q) {
+  __builtin_prefetch(&p.x[q], 1);
+  __builtin_prefetch(&p.v[q], 1);
+  __builtin_prefetch(&p.F[q], 1);
+  __builtin_prefetch(reinterpret_cast<const char*>(&p.F[q]) + sizeof(StoredMat3) - 1, 1);
+  if (!p.C.empty()) {
+    __builtin_prefetch(&p.C[q], 1);
+    __builtin_prefetch(reinterpret_cast<const char*>(&p.C[q]) + sizeof(StoredMat3) - 1, 1);
+  }
+}
+
+/// Applies the permutation `dest` (new index of each particle) to range r's particles by
+/// following its cycles; `dest` becomes the identity on r.
+void apply_cycles(const ReorderRange& r, std::vector<std::uint32_t>& dest, Particles& p) {
+  const std::size_t s = r.count > 0 ? r.state.size() / r.count : 0;
+  const bool apic = !p.C.empty();
+  for (std::size_t q = r.first; q < r.first + r.count; ++q) {
+    if (dest[q] == q) continue;
+    // `ahead` runs kLookahead steps of the cycle in front of the swaps (dest ahead of the
+    // walk is still the original permutation), prefetching the particles it passes.
+    std::uint32_t ahead = dest[q];
+    for (int i = 0; i < kLookahead; ++i) {
+      prefetch_particle(p, ahead);
+      ahead = dest[ahead];
+    }
+    while (dest[q] != q) {
+      const std::uint32_t d = dest[q];
+      prefetch_particle(p, ahead);
+      ahead = dest[ahead];
+      std::swap(p.x[q], p.x[d]);
+      std::swap(p.v[q], p.v[d]);
+      std::swap(p.F[q], p.F[d]);
+      if (apic) std::swap(p.C[q], p.C[d]);
+      std::swap(p.id[q], p.id[d]);
+      if (s > 0)
+        std::swap_ranges(r.state.begin() + (q - r.first) * s,
+                         r.state.begin() + (q - r.first + 1) * s,
+                         r.state.begin() + (d - r.first) * s);
+      std::swap(dest[q], dest[d]);
+    }
+  }
+}
+
+}  // namespace
+
 void reorder_particles(std::span<const ReorderRange> ranges, ParticleOrder& order,
                        Particles& p) {
   const std::size_t n = p.size();
@@ -15,12 +67,7 @@ void reorder_particles(std::span<const ReorderRange> ranges, ParticleOrder& orde
   std::vector<std::uint32_t>& dest = order.keys;
   dest.resize(n);
   std::vector<std::size_t> next(p.object_mass.size());
-  std::vector<std::size_t> range_of_object(p.object_mass.size());
-  for (std::size_t r = 0; r < ranges.size(); ++r) {
-    const std::uint32_t o = p.object[ranges[r].first];
-    next[o] = ranges[r].first;
-    range_of_object[o] = r;
-  }
+  for (const ReorderRange& r : ranges) next[p.object[r.first]] = r.first;
   {
     // Every range already in cell order (a slow scene: most reorders): the permutation is the
     // identity, nothing moves and the sort's keys stay valid. The first particle out of place
@@ -54,33 +101,11 @@ void reorder_particles(std::span<const ReorderRange> ranges, ParticleOrder& orde
     }
   }
   // Apply the permutation in place by following its cycles: swapping q with dest[q] puts q's
-  // particle in its place and brings the one from there to q, until q holds its own. The
-  // order changes little between reorders, so most cycles are short and local.
-  const bool apic = !p.C.empty();
-  for (std::size_t q = 0; q < n; ++q) {
-    while (dest[q] != q) {
-      const std::uint32_t d = dest[q];
-      // The next step swaps q with dest[d]: start loading that particle now.
-      const std::uint32_t next = dest[d];
-      __builtin_prefetch(&p.x[next], 1);
-      __builtin_prefetch(&p.v[next], 1);
-      __builtin_prefetch(&p.F[next], 1);
-      if (apic) __builtin_prefetch(&p.C[next], 1);
-      std::swap(p.x[q], p.x[d]);
-      std::swap(p.v[q], p.v[d]);
-      std::swap(p.F[q], p.F[d]);
-      if (apic) std::swap(p.C[q], p.C[d]);
-      std::swap(p.id[q], p.id[d]);
-      const ReorderRange& r = ranges[range_of_object[p.object[q]]];
-      if (!r.state.empty()) {
-        const std::size_t s = r.state.size() / r.count;
-        std::swap_ranges(r.state.begin() + (q - r.first) * s,
-                         r.state.begin() + (q - r.first + 1) * s,
-                         r.state.begin() + (d - r.first) * s);
-      }
-      std::swap(dest[q], dest[d]);
-    }
-  }
+  // particle in its place and brings the one from there to q, until q holds its own. A cycle
+  // never leaves its range, so the ranges (objects) are walked in parallel.
+  const std::ptrdiff_t nranges = static_cast<std::ptrdiff_t>(ranges.size());
+#pragma omp parallel for schedule(dynamic, 1) if (n >= kParallelMinItems)
+  for (std::ptrdiff_t r = 0; r < nranges; ++r) apply_cycles(ranges[r], dest, p);
   // The cell keys of the new indices: sort position k lies in cell c for
   // counts[c - 1] <= k < counts[c] (counts[-1] = 0).
   std::vector<std::uint32_t>& keys = order.keys;

@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <utility>
+
+#include <omp.h>
 
 #include "engine/step/kernels.h"
 #include "engine/step/simd/transfer_simd.h"
@@ -58,19 +61,46 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
   const Vec3i lo(lx, ly, lz), hi(hx, hy, hz);
   const Vec3i ext = hi - lo + Vec3i::Ones();
 
-  // Counting sort by base cell inside the active box (x slowest).
+  // Counting sort by base cell inside the active box (x slowest), in parallel: each thread
+  // counts the cells of its own contiguous chunk of particles; thread t's particles of cell c
+  // go after those of the threads before it, so `order` is the serial stable sort's for any
+  // thread count.
   const std::size_t cells = static_cast<std::size_t>(ext.x()) * ext.y() * ext.z();
-  ord.counts.assign(cells + 1, 0);
+  ord.counts.resize(cells + 1);
+  ord.counts[0] = 0;
   std::vector<std::uint32_t>& keys = ord.keys;  // reused: no allocation per substep
   keys.resize(n);
-#pragma omp parallel for schedule(static) if (count >= kParallelMinItems)
-  for (std::ptrdiff_t i = 0; i < count; ++i) {
-    const Vec3i b = base(i) - lo;
-    keys[i] = static_cast<std::uint32_t>((static_cast<std::size_t>(b.x()) * ext.y() + b.y()) *
-                                             ext.z() + b.z());
+  std::vector<std::uint32_t>& at = ord.thread_counts;
+#pragma omp parallel if (count >= kParallelMinItems)
+  {
+    const std::size_t threads = static_cast<std::size_t>(omp_get_num_threads());
+    const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
+    const std::size_t first = n * t / threads, last = n * (t + 1) / threads;
+#pragma omp single
+    at.assign(threads * cells, 0);
+    std::uint32_t* mine = at.data() + t * cells;
+    for (std::size_t i = first; i < last; ++i) {
+      const Vec3i b = base(i) - lo;
+      const auto key = static_cast<std::uint32_t>(
+          (static_cast<std::size_t>(b.x()) * ext.y() + b.y()) * ext.z() + b.z());
+      keys[i] = key;
+      ++mine[key];
+    }
+#pragma omp barrier
+#pragma omp single
+    {
+      // at[t][c] becomes where thread t's first particle of cell c goes; counts[c + 1] is
+      // where cell c ends.
+      std::uint32_t end = 0;
+      for (std::size_t c = 0; c < cells; ++c) {
+        for (std::size_t u = 0; u < threads; ++u)
+          end += std::exchange(at[u * cells + c], end);
+        ord.counts[c + 1] = end;
+      }
+    }
+    for (std::size_t i = first; i < last; ++i)
+      ord.order[mine[keys[i]]++] = static_cast<std::uint32_t>(i);
   }
-  for (std::size_t i = 0; i < n; ++i) ++ord.counts[keys[i] + 1];
-  for (std::size_t c = 1; c <= cells; ++c) ord.counts[c] += ord.counts[c - 1];
   activate_touched_blocks<K>(ord, lo, ext, grid);
   const int width = slab_width(K);
   const int slabs = (ext.x() + width - 1) / width;
@@ -80,7 +110,8 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
     const std::size_t x = std::min<std::size_t>(static_cast<std::size_t>(s) * width, ext.x());
     ord.slab_start[s] = ord.counts[x * plane];
   }
-  for (std::size_t i = 0; i < n; ++i) ord.order[ord.counts[keys[i]]++] = static_cast<std::uint32_t>(i);
+  // counts[c] is where cell c ends, as before this sort ran in parallel.
+  std::copy(ord.counts.begin() + 1, ord.counts.end(), ord.counts.begin());
 }
 
 }  // namespace

@@ -25,6 +25,8 @@ struct ParticleOrder {
                                         ///< (reorder_particles rebuilds `keys` from it).
   std::vector<std::uint32_t> keys;      ///< Each particle's stencil base cell (particles_to_grid
                                         ///< sums a cell's particles before writing its nodes).
+  std::vector<std::uint32_t> thread_counts;  ///< The parallel sort's scratch: per thread and
+                                             ///< cell, its particles' next place in `order`.
 };
 
 /// Sorts particles by the base cell of `kernel`'s stencil and activates the grid blocks their
