@@ -7,44 +7,23 @@ namespace mpm {
 
 namespace {
 
-/// How many swaps ahead apply_cycles starts loading a particle: the walk is a chain of
-/// dependent cache misses, so it keeps several in flight.
-constexpr int kLookahead = 6;
-
-/// Starts loading particle q's fields (x, v, F, C) for writing.
-void prefetch_particle(const Particles& p, std::uint32_t q) {
-  __builtin_prefetch(&p.x[q], 1);
-  __builtin_prefetch(&p.v[q], 1);
-  __builtin_prefetch(&p.F[q], 1);
-  __builtin_prefetch(reinterpret_cast<const char*>(&p.F[q]) + sizeof(StoredMat3) - 1, 1);
-  if (!p.C.empty()) {
-    __builtin_prefetch(&p.C[q], 1);
-    __builtin_prefetch(reinterpret_cast<const char*>(&p.C[q]) + sizeof(StoredMat3) - 1, 1);
-  }
-}
-
 /// Applies the permutation `dest` (new index of each particle) to range r's particles by
-/// following its cycles; `dest` becomes the identity on r.
-void apply_cycles(const ReorderRange& r, std::vector<std::uint32_t>& dest, Particles& p) {
+/// following its cycles; `dest` becomes the identity on r. Moves x, F, id, the state and, with
+/// `move_velocity`, v.
+void apply_cycles(const ReorderRange& r, bool move_velocity, std::vector<std::uint32_t>& dest,
+                  Particles& p) {
   const std::size_t s = r.count > 0 ? r.state.size() / r.count : 0;
-  const bool apic = !p.C.empty();
   for (std::size_t q = r.first; q < r.first + r.count; ++q) {
-    if (dest[q] == q) continue;
-    // `ahead` runs kLookahead steps of the cycle in front of the swaps (dest ahead of the
-    // walk is still the original permutation), prefetching the particles it passes.
-    std::uint32_t ahead = dest[q];
-    for (int i = 0; i < kLookahead; ++i) {
-      prefetch_particle(p, ahead);
-      ahead = dest[ahead];
-    }
     while (dest[q] != q) {
       const std::uint32_t d = dest[q];
-      prefetch_particle(p, ahead);
-      ahead = dest[ahead];
+      // The next step swaps q with dest[d]: start loading that particle now.
+      const std::uint32_t next = dest[d];
+      __builtin_prefetch(&p.x[next], 1);
+      __builtin_prefetch(&p.F[next], 1);
+      if (move_velocity) __builtin_prefetch(&p.v[next], 1);
       std::swap(p.x[q], p.x[d]);
-      std::swap(p.v[q], p.v[d]);
       std::swap(p.F[q], p.F[d]);
-      if (apic) std::swap(p.C[q], p.C[d]);
+      if (move_velocity) std::swap(p.v[q], p.v[d]);
       std::swap(p.id[q], p.id[d]);
       if (s > 0)
         std::swap_ranges(r.state.begin() + (q - r.first) * s,
@@ -57,21 +36,20 @@ void apply_cycles(const ReorderRange& r, std::vector<std::uint32_t>& dest, Parti
 
 }  // namespace
 
-void reorder_particles(std::span<const ReorderRange> ranges, ParticleOrder& order,
-                       Particles& p) {
+void reorder_particles(std::span<const ReorderRange> ranges, bool move_velocity,
+                       ParticleOrder& order, Particles& p) {
   const std::size_t n = p.size();
   if (n == 0) return;
   // dest[q]: the new index of particle q. Walking the sorted order and handing out the next
   // free index of q's range keeps each range's particles in cell order. It overwrites the cell
-  // keys, rebuilt at the end.
+  // keys: the order is spent.
   std::vector<std::uint32_t>& dest = order.keys;
   dest.resize(n);
   std::vector<std::size_t> next(p.object_mass.size());
   for (const ReorderRange& r : ranges) next[p.object[r.first]] = r.first;
   {
     // Every range already in cell order (a slow scene: most reorders): the permutation is the
-    // identity, nothing moves and the sort's keys stay valid. The first particle out of place
-    // ends the check.
+    // identity and nothing moves. The first particle out of place ends the check.
     std::vector<std::size_t> at = next;
     std::size_t k = 0;
     while (k < n && at[p.object[order.order[k]]]++ == order.order[k]) ++k;
@@ -97,7 +75,6 @@ void reorder_particles(std::span<const ReorderRange> ranges, ParticleOrder& orde
     for (std::size_t k = c * kChunk; k < std::min(n, (c + 1) * kChunk); ++k) {
       const std::uint32_t q = order.order[k];
       dest[q] = static_cast<std::uint32_t>(at[p.object[q]]++);
-      order.order[k] = dest[q];
     }
   }
   // Apply the permutation in place by following its cycles: swapping q with dest[q] puts q's
@@ -105,15 +82,7 @@ void reorder_particles(std::span<const ReorderRange> ranges, ParticleOrder& orde
   // never leaves its range, so the ranges (objects) are walked in parallel.
   const std::ptrdiff_t nranges = static_cast<std::ptrdiff_t>(ranges.size());
 #pragma omp parallel for schedule(dynamic, 1) if (n >= kParallelMinItems)
-  for (std::ptrdiff_t r = 0; r < nranges; ++r) apply_cycles(ranges[r], dest, p);
-  // The cell keys of the new indices: sort position k lies in cell c for
-  // counts[c - 1] <= k < counts[c] (counts[-1] = 0).
-  std::vector<std::uint32_t>& keys = order.keys;
-  const std::ptrdiff_t cells = static_cast<std::ptrdiff_t>(order.counts.size()) - 1;
-#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-  for (std::ptrdiff_t c = 0; c < cells; ++c)
-    for (std::size_t k = c > 0 ? order.counts[c - 1] : 0; k < order.counts[c]; ++k)
-      keys[order.order[k]] = static_cast<std::uint32_t>(c);
+  for (std::ptrdiff_t r = 0; r < nranges; ++r) apply_cycles(ranges[r], move_velocity, dest, p);
 }
 
 }  // namespace mpm

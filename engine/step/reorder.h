@@ -19,15 +19,15 @@ struct ReorderRange {
 };
 
 /// Permutes the particles of each range into the order of `order` (the stencil-cell order of
-/// the last sort_particles), so the transfers read particle memory in order. Particles never
-/// leave their range, so objects and material groups keep their ranges. `order.order` and
-/// `order.keys` are rewritten for the new indices, so the substep continues without a new
-/// sort. The counting sort is stable, so the particles of one cell keep their relative order
-/// and every grid sum is unchanged: results are bit-identical with or without reordering.
-/// The permutation is held in `order.keys` while it is applied (no array of its own), and the
-/// keys are then rebuilt from the sort's cell ranges (`order.counts`, as sort_particles leaves
-/// them: counts[c] is the end of cell c).
-void reorder_particles(std::span<const ReorderRange> ranges, ParticleOrder& order,
-                       Particles& p);
+/// this substep's sort_particles), so the next transfers read particle memory in order.
+/// Particles never leave their range, so objects and material groups keep their ranges. It
+/// runs between particles_to_grid and grid_to_particles, where v and C are dead for PIC, APIC
+/// and MLS (grid_to_particles overwrites them): it moves x, F, id and the state, and v only
+/// with `move_velocity` (FLIP blends the old v). The permutation is held in `order.keys` (no
+/// array of its own), so `order` is spent until the next sort. Ties in the stable counting
+/// sort are broken by memory index, so reordering changes which particle of a cell is summed
+/// first: results change at round-off only, and stay the same for any thread count.
+void reorder_particles(std::span<const ReorderRange> ranges, bool move_velocity,
+                       ParticleOrder& order, Particles& p);
 
 }  // namespace mpm

@@ -207,14 +207,6 @@ void Simulation::build_stages() {
   add("sort", [this](Real) { sort_particles(particles_, scene_.simulation.kernel, grid_, order_); });
   // With more than one rank: the previous rank's ghost blocks get storage here too.
   if (domain_) exchange("halo_blocks", [this](Real) { domain_->share_ghost_blocks(grid_); });
-  if (s.reorder_every > 0)
-    add("reorder", [this](Real) {
-      if (substeps_ % scene_.simulation.reorder_every != 0) return;
-      std::vector<ReorderRange> ranges;
-      for (auto& m : materials_)  // an object with no particles here (other ranks) has none
-        if (m.count > 0) ranges.push_back({m.first, m.count, m.material->state()});
-      reorder_particles(ranges, order_, particles_);
-    });
   // The stress of each group (object), chosen here once per group: with simulation.simd, a
   // group whose model has an engine SIMD kernel gets it folded into the SIMD scatter (no
   // stress array, no pass), or, where the scatter is scalar (FLIP), run as its own SIMD pass;
@@ -256,6 +248,16 @@ void Simulation::build_stages() {
         particles_to_grid(particles_, order_, sd.transfer, sd.kernel, dt, grid_,
                           sd.simd ? TransferPath::simd : TransferPath::scalar, fold);
       });
+  // Between the transfers, where v and C are dead unless FLIP blends the old v.
+  if (s.reorder_every > 0)
+    add("reorder", [this](Real) {
+      if (substeps_ % scene_.simulation.reorder_every != 0) return;
+      std::vector<ReorderRange> ranges;
+      for (auto& m : materials_)  // an object with no particles here (other ranks) has none
+        if (m.count > 0) ranges.push_back({m.first, m.count, m.material->state()});
+      reorder_particles(ranges, scene_.simulation.transfer == Transfer::flip, order_,
+                        particles_);
+    });
   if (domain_) exchange("halo_sum", [this](Real) { domain_->add_ghost_sums(grid_); });
   add("grid_update", [this](Real) { grid_update(grid_); });
   // PIC and APIC scatter the stress force as an impulse (see particles_to_grid).

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <utility>
 
@@ -48,17 +49,20 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
   const std::size_t n = p.size();
   const Vec3 origin = grid.origin, inv_h = grid.inv_h;
   const auto base = [&](std::size_t i) { return stencil_base<K>(p.x[i], origin, inv_h); };
-  // Bounds of the stencil bases: the active nodes are [lo, hi + N - 1].
-  int lx = 1 << 30, ly = 1 << 30, lz = 1 << 30, hx = -(1 << 30), hy = hx, hz = hx;
+  // Bounds of the stencil bases: the active nodes are [lo, hi + N - 1]. The base is a
+  // non-decreasing function of each coordinate, so the bounds are the bases of the smallest
+  // and largest coordinates: a min/max pass with no floor per particle.
+  Real lx = std::numeric_limits<Real>::max(), ly = lx, lz = lx, hx = -lx, hy = hx, hz = hx;
   const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(n);
 #pragma omp parallel for schedule(static) reduction(min : lx, ly, lz) \
     reduction(max : hx, hy, hz) if (count >= kParallelMinItems)
   for (std::ptrdiff_t i = 0; i < count; ++i) {
-    const Vec3i b = base(i);
-    lx = std::min(lx, b.x()), ly = std::min(ly, b.y()), lz = std::min(lz, b.z());
-    hx = std::max(hx, b.x()), hy = std::max(hy, b.y()), hz = std::max(hz, b.z());
+    const Vec3& x = p.x[i];
+    lx = std::min(lx, x.x()), ly = std::min(ly, x.y()), lz = std::min(lz, x.z());
+    hx = std::max(hx, x.x()), hy = std::max(hy, x.y()), hz = std::max(hz, x.z());
   }
-  const Vec3i lo(lx, ly, lz), hi(hx, hy, hz);
+  const Vec3i lo = stencil_base<K>(Vec3(lx, ly, lz), origin, inv_h);
+  const Vec3i hi = stencil_base<K>(Vec3(hx, hy, hz), origin, inv_h);
   const Vec3i ext = hi - lo + Vec3i::Ones();
 
   // Counting sort by base cell inside the active box (x slowest), in parallel: each thread

@@ -154,7 +154,7 @@ TEST_CASE("SIMD and scalar grid-to-particle give the same v, C and F to float ro
           a.id.resize(a.size());
           std::iota(a.id.begin(), a.id.end(), 0u);
           const ReorderRange all{0, a.size(), {}};
-          reorder_particles({&all, 1}, ord, a);
+          reorder_particles({&all, 1}, false, ord, a);
         }
         Particles b = a;
         grid_to_particles(g, tr, kernel, 0, dt, a, TransferPath::scalar);
