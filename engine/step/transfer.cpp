@@ -75,7 +75,11 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
   std::vector<std::uint32_t>& keys = ord.keys;  // reused: no allocation per substep
   keys.resize(n);
   std::vector<std::uint32_t>& at = ord.thread_counts;
-#pragma omp parallel if (count >= kParallelMinItems)
+  // Each thread's counts cover the whole box: no more threads than keep them within two
+  // counts per particle (a sparse box sorts on fewer threads rather than take the memory).
+  const int threads =
+      static_cast<int>(std::clamp<std::size_t>(2 * n / cells, 1, omp_get_max_threads()));
+#pragma omp parallel num_threads(threads) if (count >= kParallelMinItems)
   {
     const std::size_t threads = static_cast<std::size_t>(omp_get_num_threads());
     const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
