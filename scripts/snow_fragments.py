@@ -3,8 +3,11 @@
 them: particles binned into cubic cells of edge CELL (m), face-sharing occupied cells joined.
 
 Usage: /usr/bin/python3 scripts/snow_fragments.py RUN_DIR FRAME CELL
-Prints the fragment count, the largest fragment's share and the largest sizes of frame FRAME,
-and whether it meets the shatter criterion (docs/validation.md, section 17);
+FRAME is a frame number, several joined by commas, or "all".
+Prints, per frame, the fragment count, the largest fragment's share and the largest sizes,
+whether it meets the shatter criterion (docs/validation.md, section 17), and for each of the
+three largest fragments its share, bounding box and mean velocity (a heap of dust against a
+wall shows as a thin box at the wall, at rest);
 then, from RUN_DIR/checkpoint.h5 (the last frame's state), the share of particles with Jp > 1,
 Jp's range, and the "intact pieces": the fragments of the particles whose hardness
 exp(xi (1 - Jp)) is still at least 1% of the virgin snow's (Jp <= 1 + ln(100) / 10 for
@@ -16,29 +19,47 @@ import h5py
 import numpy as np
 from scipy import ndimage
 
-run, frame, cell = sys.argv[1], int(sys.argv[2]), float(sys.argv[3])
+run, frames, cell = sys.argv[1], sys.argv[2], float(sys.argv[3])
 
 
-def fragments(x):
-    """Fragment sizes, largest first, of the points x (N x 3)."""
+def labelled(x):
+    """Each point's fragment label (points x, N x 3) and the fragments' sizes by label."""
     ijk = np.floor(x / cell).astype(np.int64)
     ijk -= ijk.min(axis=0)
     occupied = np.zeros(ijk.max(axis=0) + 1, bool)
     occupied[tuple(ijk.T)] = True
     labels, _ = ndimage.label(occupied)  # default structure: face neighbours only
-    return np.sort(np.bincount(labels[tuple(ijk.T)])[1:])[::-1]
+    point_labels = labels[tuple(ijk.T)]
+    return point_labels, np.bincount(point_labels)
 
 
-with h5py.File(os.path.join(run, f"frame_{frame:05d}.h5")) as f:
-    x = f["position"][:].astype(np.float64)
-    t = float(f.attrs["time"])
-sizes = fragments(x)
-count = len(sizes)
-print(f"frame {frame} (t = {t:.4f} s): {len(x)} particles, {count} fragments, largest "
-      f"{sizes[0] / len(x):.1%}, sizes {sizes[:6].tolist()}")
-# The shatter criterion of docs/validation.md section 17 (test::shattered).
-shattered = sizes[0] < 0.6 * len(x) and (sizes >= 0.02 * len(x)).sum() >= 3
-print(f"shatters (largest < 60%, >= 3 fragments of >= 2%): {'yes' if shattered else 'no'}")
+def fragments(x):
+    """Fragment sizes, largest first, of the points x (N x 3)."""
+    return np.sort(labelled(x)[1][1:])[::-1]
+
+
+if frames == "all":
+    numbers = sorted(int(name[6:11]) for name in os.listdir(run)
+                     if name.startswith("frame_") and name.endswith(".h5"))
+else:
+    numbers = [int(n) for n in frames.split(",")]
+for frame in numbers:
+    with h5py.File(os.path.join(run, f"frame_{frame:05d}.h5")) as f:
+        x = f["position"][:].astype(np.float64)
+        v = f["velocity"][:].astype(np.float64)
+        t = float(f.attrs["time"])
+    point_labels, by_label = labelled(x)
+    sizes = np.sort(by_label[1:])[::-1]
+    print(f"frame {frame} (t = {t:.4f} s): {len(x)} particles, {len(sizes)} fragments, largest "
+          f"{sizes[0] / len(x):.1%}, sizes {sizes[:6].tolist()}")
+    # The shatter criterion of docs/validation.md section 17 (test::shattered).
+    shattered = sizes[0] < 0.6 * len(x) and (sizes >= 0.02 * len(x)).sum() >= 3
+    print(f"shatters (largest < 60%, >= 3 fragments of >= 2%): {'yes' if shattered else 'no'}")
+    for label in (np.argsort(by_label[1:])[::-1] + 1)[:3]:
+        inside = point_labels == label
+        lo, hi, mean_v = x[inside].min(axis=0), x[inside].max(axis=0), v[inside].mean(axis=0)
+        print(f"  {inside.sum() / len(x):.1%}: box {np.round(lo, 3).tolist()} to "
+              f"{np.round(hi, 3).tolist()} m, mean velocity {np.round(mean_v, 2).tolist()} m/s")
 checkpoint = os.path.join(run, "checkpoint.h5")
 if os.path.exists(checkpoint):
     with h5py.File(checkpoint) as f:
