@@ -81,11 +81,11 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
       static_cast<int>(std::clamp<std::size_t>(2 * n / cells, 1, omp_get_max_threads()));
 #pragma omp parallel num_threads(threads) if (count >= kParallelMinItems)
   {
-    const std::size_t threads = static_cast<std::size_t>(omp_get_num_threads());
+    const std::size_t team = static_cast<std::size_t>(omp_get_num_threads());
     const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
-    const std::size_t first = n * t / threads, last = n * (t + 1) / threads;
+    const std::size_t first = n * t / team, last = n * (t + 1) / team;
 #pragma omp single
-    at.assign(threads * cells, 0);
+    at.assign(team * cells, 0);
     std::uint32_t* mine = at.data() + t * cells;
     for (std::size_t i = first; i < last; ++i) {
       const Vec3i b = base(i) - lo;
@@ -97,11 +97,11 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
 #pragma omp barrier
 #pragma omp single
     {
-      // at[t][c] becomes where thread t's first particle of cell c goes; counts[c + 1] is
-      // where cell c ends.
+      // at[t][c] becomes where thread t's first particle of cell c goes; counts[c] is where
+      // cell c starts.
       std::uint32_t end = 0;
       for (std::size_t c = 0; c < cells; ++c) {
-        for (std::size_t u = 0; u < threads; ++u)
+        for (std::size_t u = 0; u < team; ++u)
           end += std::exchange(at[u * cells + c], end);
         ord.counts[c + 1] = end;
       }
@@ -118,8 +118,6 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
     const std::size_t x = std::min<std::size_t>(static_cast<std::size_t>(s) * width, ext.x());
     ord.slab_start[s] = ord.counts[x * plane];
   }
-  // counts[c] is where cell c ends, as before this sort ran in parallel.
-  std::copy(ord.counts.begin() + 1, ord.counts.end(), ord.counts.begin());
 }
 
 }  // namespace

@@ -20,9 +20,8 @@ namespace mpm {
 struct ParticleOrder {
   std::vector<std::uint32_t> order;     ///< Particle indices sorted by stencil base cell.
   std::vector<std::size_t> slab_start;  ///< order[slab_start[s] .. slab_start[s+1]) is slab s.
-  std::vector<std::uint32_t> counts;    ///< The counting sort's cell offsets: after the sort,
-                                        ///< counts[c] is where cell c's run in `order` ends
-                                        ///< (reorder_particles rebuilds `keys` from it).
+  std::vector<std::uint32_t> counts;    ///< The counting sort's cell offsets: counts[c] is
+                                        ///< where cell c's run in `order` starts (cells + 1).
   std::vector<std::uint32_t> keys;      ///< Each particle's stencil base cell (particles_to_grid
                                         ///< sums a cell's particles before writing its nodes).
   std::vector<std::uint32_t> thread_counts;  ///< The parallel sort's scratch: per thread and
