@@ -1,6 +1,7 @@
 #pragma once
 /// \file Frame files (HDF5) and the run report (YAML), written by an observer.
 
+#include <chrono>
 #include <filesystem>
 #include <vector>
 
@@ -62,9 +63,10 @@ void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, 
 int restore_checkpoint(const std::filesystem::path& file, Simulation& sim);
 
 /// Writes each frame in the scene's formats (HDF5 with an XDMF index, bgeo, PLY, PNG
-/// previews, surfaces as PLY meshes and VDB level sets), a checkpoint after each frame, and
-/// report.yaml at the end (with each object's particle spacing and the surface settings, which
-/// `mpm surface` reads).
+/// previews, surfaces as PLY meshes and VDB level sets), a checkpoint after the first frame
+/// that ends `output.checkpoint_interval` wall seconds after the last one and once more at
+/// the end (see on_finish), and report.yaml at the end (with each object's particle spacing
+/// and the surface settings, which `mpm surface` reads).
 class FrameOutput : public Observer {
  public:
   /// Output into `dir` as `desc` asks; `resumed_frame` > 0 continues a run from that frame
@@ -72,6 +74,9 @@ class FrameOutput : public Observer {
   FrameOutput(std::filesystem::path dir, const OutputDesc& desc, int resumed_frame = 0);
   void on_start(const Simulation& sim, int frames) override;
   void on_frame(const Simulation& sim, int frame) override;
+  /// Writes the checkpoint of the last frame if it is not written yet and the state is still
+  /// that frame's (a run that ended, was stopped at a frame end, or whose observer failed;
+  /// not one stopped mid-frame as unstable), then report.yaml.
   void on_finish(const Simulation& sim, const RunResult& result) override;
   /// Seconds spent writing frames so far.
   double seconds() const { return seconds_; }
@@ -88,6 +93,7 @@ class FrameOutput : public Observer {
   void write(const Simulation& sim, int frame);
   void write_collective(const Simulation& sim, int frame);
   void write_index(const Simulation& sim, int frame, std::size_t particles) const;
+  void checkpoint(const Simulation& sim, int frame);
   std::filesystem::path dir_;
   OutputDesc desc_;
   int resumed_frame_ = 0;
@@ -96,6 +102,11 @@ class FrameOutput : public Observer {
   int last_frame_ = -1;
   double seconds_ = 0;
   double surface_seconds_ = 0;  // of seconds_, building and writing mesh and vdb surfaces
+  double checkpoint_seconds_ = 0;  // of seconds_, writing checkpoint.h5
+  int checkpoint_frame_ = -1;      // the frame checkpoint.h5 holds, -1 before the first
+  int checkpoints_ = 0;            // checkpoints written by this run
+  Real last_frame_time_ = -1;      // sim.time() of the last frame written
+  std::chrono::steady_clock::time_point last_checkpoint_ = std::chrono::steady_clock::now();
   FrameArrays scratch_;  // the frame in id order, while it is written
 };
 

@@ -78,8 +78,8 @@ inline constexpr Real kEnergyGrowthLimit = 0.5;
 /// Runs frames first_frame..frames, frame f ending at time f * frame_dt (the state is at frame
 /// first_frame - 1 on entry: 0 for a new run, the checkpoint's frame when resuming). An observer
 /// that throws std::exception ends the run with status "error"; a non-finite particle ends it
-/// with status "unstable"; `stop` becoming true (e.g. from a signal handler) ends it after the
-/// current substep with status "interrupted".
+/// with status "unstable"; `stop` becoming true (e.g. from a signal handler) ends it at the end
+/// of the current frame, after its observers, with status "interrupted".
 RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
                      const std::vector<Observer*>& observers,
                      const std::atomic<bool>* stop = nullptr, int first_frame = 1);
