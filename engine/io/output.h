@@ -11,9 +11,30 @@
 
 namespace mpm {
 
-/// Writes `frame` as HDF5 datasets position (N x 3), velocity (N x 3), object_id (N), J (N),
+/// One frame's HDF5 datasets in the file's types, row k the particle with id k.
+struct FrameRows {
+  std::vector<float> position;         ///< N x 3, row-major, m.
+  std::vector<float> velocity;         ///< N x 3, row-major, m/s.
+  std::vector<int> object_id;          ///< N.
+  std::vector<float> J;                ///< N, det F.
+  std::vector<std::uint32_t> id;       ///< N: 0 .. N-1.
+  double time = 0;                     ///< Simulation time, s.
+  int frame = 0;                       ///< Frame number.
+  /// Number of particles.
+  std::size_t size() const { return J.size(); }
+};
+
+/// Fills `rows` from `p` in the order of the particles' stable ids, in parallel (each particle
+/// writes its own row), converting to float as it goes; the vectors keep their memory, so a
+/// run reusing `rows` allocates nothing per frame.
+void frame_rows_in_id_order(const Particles& p, Real time, int frame, FrameRows& rows);
+
+/// Writes `rows` as HDF5 datasets position (N x 3), velocity (N x 3), object_id (N), J (N),
 /// id (N), with attributes time and frame. Writes to a temporary name and renames, so a frame
 /// file is whole or absent. Throws std::runtime_error on failure.
+void write_frame_hdf5(const std::filesystem::path& file, const FrameRows& rows);
+
+/// write_frame_hdf5 of `frame`'s rows, in the view's order.
 void write_frame_hdf5(const std::filesystem::path& file, const FrameView& frame);
 
 /// Arrays a FrameView can point into when the particles are not in id order.
@@ -107,7 +128,8 @@ class FrameOutput : public Observer {
   int checkpoints_ = 0;            // checkpoints written by this run
   Real last_frame_time_ = -1;      // sim.time() of the last frame written
   std::chrono::steady_clock::time_point last_checkpoint_ = std::chrono::steady_clock::now();
-  FrameArrays scratch_;  // the frame in id order, while it is written
+  FrameArrays scratch_;  // the frame in id order for the formats besides HDF5
+  FrameRows rows_;       // the HDF5 frame, kept between frames (its size is in every peak)
 };
 
 }  // namespace mpm
