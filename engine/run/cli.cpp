@@ -259,6 +259,10 @@ std::atomic<bool> g_stop{false};
 extern "C" void on_signal(int sig) {
   g_stop.store(true);
   std::signal(sig, SIG_DFL);
+  static const char kSay[] =
+      "\nmpm: stopping at the end of this frame (its frame and checkpoint are written); "
+      "signal again to stop now\n";
+  [[maybe_unused]] const ssize_t ignored = write(STDERR_FILENO, kSay, sizeof kSay - 1);
 }
 
 /// The plugins the command line allows (--plugin, --allow-scene-plugins).
