@@ -444,29 +444,31 @@ void FrameOutput::on_frame_gathered(const Simulation& sim, int frame) {
   if (others_ && parallel::rank() == 0) write(sim, frame);
 }
 
+void FrameOutput::on_stop(const Simulation& sim, const RunResult&) {
+  // The last frame's checkpoint, while the state is still that frame's (rank 0 holds every
+  // particle after the frame's gather, which the checkpoint asks for): a run stopped
+  // mid-frame (unstable, a failed stage) keeps the last one written.
+  if (parallel::rank() != 0 || !desc_.checkpoint || last_frame_ <= checkpoint_frame_ ||
+      sim.time() != last_frame_time_)
+    return;
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    checkpoint(sim, last_frame_);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(std::string("cannot write the checkpoint: ") + e.what());
+  }
+  seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
   // Without the frame's gather each rank holds its own particles: count them over the ranks.
   std::size_t n = sim.particles().size();
   if (collective_) n = parallel::sum_all(static_cast<std::uint64_t>(n));
   if (parallel::rank() != 0) return;
-  std::string status = r.status, message = r.message, failed;
-  // The last frame's checkpoint, while the state is still that frame's (rank 0 holds every
-  // particle after the frame's gather, which the checkpoint asks for): a run stopped
-  // mid-frame (unstable, a failed stage) keeps the last one written.
-  if (desc_.checkpoint && last_frame_ > checkpoint_frame_ && sim.time() == last_frame_time_) {
-    const auto t0 = std::chrono::steady_clock::now();
-    try {
-      checkpoint(sim, last_frame_);
-    } catch (const std::exception& e) {
-      failed = std::string("cannot write the checkpoint: ") + e.what();
-      if (status == "ok") status = "error", message = failed;
-    }
-    seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  }
   YAML::Emitter y;
   y << YAML::BeginMap;
-  y << YAML::Key << "status" << YAML::Value << status;
-  if (!message.empty()) y << YAML::Key << "message" << YAML::Value << message;
+  y << YAML::Key << "status" << YAML::Value << r.status;
+  if (!r.message.empty()) y << YAML::Key << "message" << YAML::Value << r.message;
   if (r.instability) {
     const Instability& u = *r.instability;
     y << YAML::Key << "instability" << YAML::Value << YAML::BeginMap;
@@ -568,7 +570,6 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
   std::error_code ec;
   std::filesystem::create_directories(dir_, ec);
   write_file_whole(dir_ / "report.yaml", std::string(y.c_str()) + "\n");
-  if (!failed.empty()) throw std::runtime_error(failed);  // the run's status: error
 }
 
 }  // namespace mpm

@@ -97,7 +97,9 @@ class FrameOutput : public Observer {
   void on_frame(const Simulation& sim, int frame) override;
   /// Writes the checkpoint of the last frame if it is not written yet and the state is still
   /// that frame's (a run that ended, was stopped at a frame end, or whose observer failed;
-  /// not one stopped mid-frame as unstable), then report.yaml.
+  /// not one stopped mid-frame as unstable).
+  void on_stop(const Simulation& sim, const RunResult& result) override;
+  /// Writes report.yaml.
   void on_finish(const Simulation& sim, const RunResult& result) override;
   /// Seconds spent writing frames so far.
   double seconds() const { return seconds_; }

@@ -303,6 +303,14 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
     }
   }
   if (!std::isfinite(result.dt_min)) result.dt_min = 0;
+  {
+    const auto t0 = clock::now();
+    notify([&] {
+      for (Observer* o : observers) o->on_stop(sim, result);
+    });
+    result.observer_seconds += seconds_since(t0);
+    agree();
+  }
   result.wall_seconds = std::chrono::duration<double>(clock::now() - start).count();
   for (Observer* o : observers) {
     try {

@@ -56,7 +56,10 @@ class Observer {
   virtual void on_substep(const Simulation& sim, int frame) {}
   /// After frame `frame` (1-based) is complete.
   virtual void on_frame(const Simulation& sim, int frame) {}
-  /// Once at the end, whatever the status.
+  /// Once when the frame loop ends, whatever the status, inside the run's timing (final
+  /// writes: its time counts in observer_seconds); an exception sets status error.
+  virtual void on_stop(const Simulation& sim, const RunResult& result) {}
+  /// Once at the end, whatever the status, with the run's times.
   virtual void on_finish(const Simulation& sim, const RunResult& result) {}
   /// True for an observer whose frame-end work is a reduction (engine/parallel/comm.h): with
   /// more than one rank it is called on every rank with the rank's own particles, before the
