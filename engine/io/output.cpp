@@ -357,8 +357,8 @@ void FrameOutput::write(const Simulation& sim, int frame) {
   // The other formats take the frame as double views in id order; HDF5 alone (the default)
   // goes straight from the particles to its float rows.
   const bool hdf5_only = desc_.formats == std::vector<Format>{Format::hdf5};
-  const FrameView view = hdf5_only ? FrameView{}
-                                   : frame_in_id_order(sim.particles(), sim.time(), frame, scratch_);
+  const FrameView view =
+      hdf5_only ? FrameView{} : frame_in_id_order(sim.particles(), sim.time(), frame, scratch_);
   for (Format f : desc_.formats) {
     switch (f) {
       case Format::hdf5: {
@@ -500,7 +500,8 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
   y << YAML::Key << "checkpoint_seconds" << YAML::Value << checkpoint_seconds_;
   y << YAML::Key << "checkpoints" << YAML::Value << checkpoints_;
   // The frame --resume continues from (-1: no checkpoint).
-  y << YAML::Key << "checkpoint_frame" << YAML::Value << (desc_.checkpoint ? checkpoint_frame_ : -1);
+  y << YAML::Key << "checkpoint_frame" << YAML::Value
+    << (desc_.checkpoint ? checkpoint_frame_ : -1);
   y << YAML::Key << "check_seconds" << YAML::Value << r.check_seconds;
   y << YAML::Key << "observer_seconds" << YAML::Value << r.observer_seconds;
   const double steps = static_cast<double>(n) * sim.substeps();

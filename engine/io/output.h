@@ -13,13 +13,13 @@ namespace mpm {
 
 /// One frame's HDF5 datasets in the file's types, row k the particle with id k.
 struct FrameRows {
-  std::vector<float> position;         ///< N x 3, row-major, m.
-  std::vector<float> velocity;         ///< N x 3, row-major, m/s.
-  std::vector<int> object_id;          ///< N.
-  std::vector<float> J;                ///< N, det F.
-  std::vector<std::uint32_t> id;       ///< N: 0 .. N-1.
-  double time = 0;                     ///< Simulation time, s.
-  int frame = 0;                       ///< Frame number.
+  std::vector<float> position;    ///< N x 3, row-major, m.
+  std::vector<float> velocity;    ///< N x 3, row-major, m/s.
+  std::vector<int> object_id;     ///< N.
+  std::vector<float> J;           ///< N, det F.
+  std::vector<std::uint32_t> id;  ///< N: 0 .. N-1.
+  double time = 0;                ///< Simulation time, s.
+  int frame = 0;                  ///< Frame number.
   /// Number of particles.
   std::size_t size() const { return J.size(); }
 };

@@ -284,8 +284,8 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       const bool stopping = stop && stop->load() && f < frames && result.status == "ok";
       if (domain ? parallel::any_all(stopping) : stopping) {
         result.status = "interrupted";
-        result.message = "stopped by a signal after frame " + std::to_string(f) +
-                         " (substep " + std::to_string(sim.substeps()) +
+        result.message = "stopped by a signal after frame " + std::to_string(f) + " (substep " +
+                         std::to_string(sim.substeps()) +
                          "), the last complete frame; --resume continues from it";
         break;
       }

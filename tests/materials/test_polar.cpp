@@ -241,7 +241,8 @@ TEST_CASE("distance_to_rotation_squared equals |F - R|^2 without R, through its 
   };
   for (int k = 0; k < 200; ++k) check(test::random_near_identity(rng, 1.0));
   for (int k = 0; k < 200; ++k)
-    check(test::random_rotation(rng) * test::random_near_identity(rng, std::pow(10.0, -1 - 0.05 * k)));
+    check(test::random_rotation(rng) *
+          test::random_near_identity(rng, std::pow(10.0, -1 - 0.05 * k)));
   for (int k = 0; k < 100; ++k)  // inverted: sigma_3 < 0
     check(with_singular_values(rng, Vec3(u(rng), u(rng), -small(rng))));
   Real J;
@@ -258,6 +259,7 @@ TEST_CASE("distance_to_rotation_squared equals |F - R|^2 without R, through its 
   const materials::FixedCorotated m{2.0, 3.0};
   const Mat3 F = test::random_near_identity(rng, 0.3);
   const Real Jf = F.determinant();
-  CHECK(m.energy(F) == Approx(2.0 * (F - polar_rotation(F)).squaredNorm() +
-                              1.5 * (Jf - 1) * (Jf - 1)).epsilon(1e-12));
+  CHECK(m.energy(F) ==
+        Approx(2.0 * (F - polar_rotation(F)).squaredNorm() + 1.5 * (Jf - 1) * (Jf - 1))
+            .epsilon(1e-12));
 }

@@ -162,8 +162,10 @@ TEST_CASE("a checkpoint of the other storage precision is refused, not resumed",
   CHECK_FALSE(std::filesystem::exists(frame_path(b, 3)));
 }
 
-TEST_CASE("SIGINT stops a run at a frame end with its checkpoint; the resumed run ends as an "
-          "uninterrupted one", "[regression]") {
+TEST_CASE(
+    "SIGINT stops a run at a frame end with its checkpoint; the resumed run ends as an "
+    "uninterrupted one",
+    "[regression]") {
   const auto dir = test::temp_dir("interrupt");
   const auto scene = small_scene(dir);
   const std::string out = (dir / "out").string();
