@@ -220,7 +220,8 @@ inline Mat3 polar_rotation(const Mat3& F, Real& J) {
 
 /// |F - R|^2 = sum_i (sigma_i - 1)^2 for the rotation R of polar_rotation (sigma_3 signed),
 /// and J = det F, without R: |F|^2 - 2 tr(R^T F) + 3 with tr(R^T F) = sigma_1 + sigma_2 +
-/// sigma_3, the largest root of Horn's polynomial (about a fifth of polar_rotation's cost).
+/// sigma_3, the largest root of Horn's polynomial: no eigenvector and no R (about half the
+/// cost of polar_rotation in two_cubes' energy check, docs/performance.md).
 /// The subtraction loses about 1e-15 absolute against the (F - R) route.
 inline Real distance_to_rotation_squared(const Mat3& F, Real& J) {
   J = F.determinant();
