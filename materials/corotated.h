@@ -15,12 +15,12 @@ struct FixedCorotated {
   Real lambda = 0;  ///< First Lamé parameter, Pa.
 
   /// Energy density psi(F), J/m^3. With F = R S (polar_rotation), S's eigenvalues are the
-  /// signed sigma_i, so sum_i (sigma_i - 1)^2 = |S - I|^2 = |F - R|^2: the stress's own R, and
-  /// no SVD.
+  /// signed sigma_i, so sum_i (sigma_i - 1)^2 = |S - I|^2 = |F - R|^2, which
+  /// distance_to_rotation_squared gets from the sum of the sigma_i alone: no R, no SVD.
   Real energy(const Mat3& F) const {
     Real J;
-    const Mat3 R = polar_rotation(F, J);
-    return mu * (F - R).squaredNorm() + 0.5 * lambda * (J - 1) * (J - 1);
+    const Real d2 = distance_to_rotation_squared(F, J);
+    return mu * d2 + 0.5 * lambda * (J - 1) * (J - 1);
   }
 
   /// First Piola-Kirchhoff stress P = 2 mu (F - R) + lambda (J - 1) J F^-T, Pa.

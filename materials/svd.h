@@ -13,6 +13,7 @@
 /// rotation is the top eigenvector of Horn's 4x4 quaternion matrix, found without any SVD;
 /// see svd_detail::polar_rotation_quaternion.
 
+#include <algorithm>
 #include <cmath>
 #include <utility>
 
@@ -117,9 +118,10 @@ inline Mat3 polar_rotation_svd(const Mat3& F) {
 
 namespace svd_detail {
 
-/// R = argmax tr(R^T F) over proper rotations (J = det F) by the quaternion method; false
-/// (R unset) when F is too close to a case where R is ill-determined or not unique (F = 0,
-/// rank <= 1, or inverted with sigma_2 ~ |sigma_3|), or not finite.
+/// The largest eigenvalue l = tr(R^T F) of Horn's matrix K below for the best rotation R
+/// (J = det F), and n2 = |F|^2; false when l's eigenvector (and so R) is too ill-conditioned
+/// to trust (F = 0, rank <= 1, or inverted with sigma_2 ~ |sigma_3|), or F is not finite: the
+/// callers then fall back to svd_rv.
 ///
 /// Horn 1987, "Closed-form solution of absolute orientation using unit quaternions" (JOSA A
 /// 4(4), section 4): with R = R(q) for a quaternion q = (w, x, y, z), tr(R^T F) = q^T K q / q^T q
@@ -131,13 +133,13 @@ namespace svd_detail {
 /// Cryst. A61), lambda is the largest root of det(K - lambda I) = lambda^4 + c2 lambda^2 +
 /// c1 lambda + c0 and the eigenvector is a column of the adjugate of K - lambda I. Here
 /// c2 = -2 |F|^2, c1 = -8 det F and c0 = det K = 2 |F^T F|^2 - |F|^4 (from the eigenvalues).
-inline bool polar_rotation_quaternion(const Mat3& F, Real J, Mat3& R) {
+inline bool horn_largest_root(const Mat3& F, Real J, Real& l, Real& n2) {
   // Invariants of F and the characteristic polynomial of K.
   const Real c00 = F.col(0).squaredNorm(), c11 = F.col(1).squaredNorm(),
              c22 = F.col(2).squaredNorm();
   const Real c01 = F.col(0).dot(F.col(1)), c02 = F.col(0).dot(F.col(2)),
              c12 = F.col(1).dot(F.col(2));
-  const Real n2 = c00 + c11 + c22;  // |F|^2
+  n2 = c00 + c11 + c22;  // |F|^2
   const Real c2 = -2 * n2, c1 = -8 * J;
   const Real c0 =
       2 * (c00 * c00 + c11 * c11 + c22 * c22 + 2 * (c01 * c01 + c02 * c02 + c12 * c12)) - n2 * n2;
@@ -145,7 +147,8 @@ inline bool polar_rotation_quaternion(const Mat3& F, Real J, Mat3& R) {
   // above the largest root of a polynomial with only real roots, Halley's step
   // 2 P P' / (2 P'^2 - P P'') never overshoots it (with x_i = 1 / (lambda - lambda_i), the step
   // is 2 sum x / ((sum x)^2 + sum x^2) <= 1 / max x), so lambda decreases monotonically to it.
-  Real l = std::sqrt(3 * n2), dp = 0;
+  l = std::sqrt(3 * n2);
+  Real dp = 0;
   int it = 0;
   for (; it < 32; ++it) {
     const Real l2 = l * l;
@@ -162,7 +165,16 @@ inline bool polar_rotation_quaternion(const Mat3& F, Real J, Mat3& R) {
   // round-off of lambda and q grows as it shrinks. Above 2 |F|^3 (near-rotations have about
   // 12 |F|^3) R is about as accurate as svd_rv's (measured against a long double SVD); below,
   // the caller falls back to svd_rv.
-  if (!(it < 32 && dp > 0 && dp * dp > 4 * n2 * n2 * n2)) return false;
+  return it < 32 && dp > 0 && dp * dp > 4 * n2 * n2 * n2;
+}
+
+/// R = argmax tr(R^T F) over proper rotations (J = det F) by the quaternion method; false
+/// (R unset) when F is too close to a case where R is ill-determined or not unique (F = 0,
+/// rank <= 1, or inverted with sigma_2 ~ |sigma_3|), or not finite: the eigenvector of
+/// horn_largest_root's l.
+inline bool polar_rotation_quaternion(const Mat3& F, Real J, Mat3& R) {
+  Real l, n2;
+  if (!horn_largest_root(F, J, l, n2)) return false;
 
   // K - lambda I.
   const Real a00 = F(0, 0) + F(1, 1) + F(2, 2) - l, a11 = F(0, 0) - F(1, 1) - F(2, 2) - l,
@@ -204,6 +216,21 @@ inline Mat3 polar_rotation(const Mat3& F, Real& J) {
   Mat3 R;
   if (!svd_detail::polar_rotation_quaternion(F, J, R)) R = polar_rotation_svd(F);
   return R;
+}
+
+/// |F - R|^2 = sum_i (sigma_i - 1)^2 for the rotation R of polar_rotation (sigma_3 signed),
+/// and J = det F, without R: |F|^2 - 2 tr(R^T F) + 3 with tr(R^T F) = sigma_1 + sigma_2 +
+/// sigma_3, the largest root of Horn's polynomial: no eigenvector and no R (about half the
+/// cost of polar_rotation in two_cubes' energy check, docs/performance.md).
+/// The subtraction loses about 1e-15 absolute against the (F - R) route.
+inline Real distance_to_rotation_squared(const Mat3& F, Real& J) {
+  J = F.determinant();
+  Real l, n2;
+  if (svd_detail::horn_largest_root(F, J, l, n2)) return std::max(Real(0), n2 - 2 * l + 3);
+  Mat3 U, V;
+  Vec3 sigma;
+  svd_rv(F, U, sigma, V);
+  return (sigma - Vec3::Ones()).squaredNorm();
 }
 
 /// Rotation R of the rotation-variant polar decomposition F = R S.

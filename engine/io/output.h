@@ -1,6 +1,7 @@
 #pragma once
 /// \file Frame files (HDF5) and the run report (YAML), written by an observer.
 
+#include <chrono>
 #include <filesystem>
 #include <vector>
 
@@ -10,9 +11,30 @@
 
 namespace mpm {
 
-/// Writes `frame` as HDF5 datasets position (N x 3), velocity (N x 3), object_id (N), J (N),
+/// One frame's HDF5 datasets in the file's types, row k the particle with id k.
+struct FrameRows {
+  std::vector<float> position;    ///< N x 3, row-major, m.
+  std::vector<float> velocity;    ///< N x 3, row-major, m/s.
+  std::vector<int> object_id;     ///< N.
+  std::vector<float> J;           ///< N, det F.
+  std::vector<std::uint32_t> id;  ///< N: 0 .. N-1.
+  double time = 0;                ///< Simulation time, s.
+  int frame = 0;                  ///< Frame number.
+  /// Number of particles.
+  std::size_t size() const { return J.size(); }
+};
+
+/// Fills `rows` from `p` in the order of the particles' stable ids, in parallel (each particle
+/// writes its own row), converting to float as it goes; the vectors keep their memory, so a
+/// run reusing `rows` allocates nothing per frame.
+void frame_rows_in_id_order(const Particles& p, Real time, int frame, FrameRows& rows);
+
+/// Writes `rows` as HDF5 datasets position (N x 3), velocity (N x 3), object_id (N), J (N),
 /// id (N), with attributes time and frame. Writes to a temporary name and renames, so a frame
 /// file is whole or absent. Throws std::runtime_error on failure.
+void write_frame_hdf5(const std::filesystem::path& file, const FrameRows& rows);
+
+/// write_frame_hdf5 of `frame`'s rows, in the view's order.
 void write_frame_hdf5(const std::filesystem::path& file, const FrameView& frame);
 
 /// Arrays a FrameView can point into when the particles are not in id order.
@@ -62,9 +84,10 @@ void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, 
 int restore_checkpoint(const std::filesystem::path& file, Simulation& sim);
 
 /// Writes each frame in the scene's formats (HDF5 with an XDMF index, bgeo, PLY, PNG
-/// previews, surfaces as PLY meshes and VDB level sets), a checkpoint after each frame, and
-/// report.yaml at the end (with each object's particle spacing and the surface settings, which
-/// `mpm surface` reads).
+/// previews, surfaces as PLY meshes and VDB level sets), a checkpoint after the first frame
+/// that ends `output.checkpoint_interval` wall seconds after the last one and once more at
+/// the end (see on_finish), and report.yaml at the end (with each object's particle spacing
+/// and the surface settings, which `mpm surface` reads).
 class FrameOutput : public Observer {
  public:
   /// Output into `dir` as `desc` asks; `resumed_frame` > 0 continues a run from that frame
@@ -72,6 +95,11 @@ class FrameOutput : public Observer {
   FrameOutput(std::filesystem::path dir, const OutputDesc& desc, int resumed_frame = 0);
   void on_start(const Simulation& sim, int frames) override;
   void on_frame(const Simulation& sim, int frame) override;
+  /// Writes the checkpoint of the last frame if it is not written yet and the state is still
+  /// that frame's (a run that ended, was stopped at a frame end, or whose observer failed;
+  /// not one stopped mid-frame as unstable).
+  void on_stop(const Simulation& sim, const RunResult& result) override;
+  /// Writes report.yaml.
   void on_finish(const Simulation& sim, const RunResult& result) override;
   /// Seconds spent writing frames so far.
   double seconds() const { return seconds_; }
@@ -88,6 +116,7 @@ class FrameOutput : public Observer {
   void write(const Simulation& sim, int frame);
   void write_collective(const Simulation& sim, int frame);
   void write_index(const Simulation& sim, int frame, std::size_t particles) const;
+  void checkpoint(const Simulation& sim, int frame);
   std::filesystem::path dir_;
   OutputDesc desc_;
   int resumed_frame_ = 0;
@@ -96,7 +125,13 @@ class FrameOutput : public Observer {
   int last_frame_ = -1;
   double seconds_ = 0;
   double surface_seconds_ = 0;  // of seconds_, building and writing mesh and vdb surfaces
-  FrameArrays scratch_;  // the frame in id order, while it is written
+  double checkpoint_seconds_ = 0;  // of seconds_, writing checkpoint.h5
+  int checkpoint_frame_ = -1;      // the frame checkpoint.h5 holds, -1 before the first
+  int checkpoints_ = 0;            // checkpoints written by this run
+  Real last_frame_time_ = -1;      // sim.time() of the last frame written
+  std::chrono::steady_clock::time_point last_checkpoint_ = std::chrono::steady_clock::now();
+  FrameArrays scratch_;  // the frame in id order for the formats besides HDF5
+  FrameRows rows_;       // the HDF5 frame, kept between frames (its size is in every peak)
 };
 
 }  // namespace mpm

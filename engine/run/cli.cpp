@@ -86,7 +86,8 @@ Options of run:
 
 Exit codes: 0 success; 1 the run failed (unstable, interrupted, or output could not be
 written; the report says why and frames already written stay whole); 2 bad scene or usage.
-Ctrl-C or SIGTERM stops a run after the current substep.
+Ctrl-C or SIGTERM stops a run at the end of the current frame, after writing the frame
+and the checkpoint; a second one stops it at once (the last checkpoint written stays).
 )";
 
 /// The command line.
@@ -253,7 +254,16 @@ int list_materials(const mpm::MaterialRegistry& registry) {
 
 std::atomic<bool> g_stop{false};
 
-extern "C" void on_signal(int) { g_stop.store(true); }
+/// The first signal asks the run to stop at the frame end; the next one ends the process
+/// (signal() is async-signal-safe).
+extern "C" void on_signal(int sig) {
+  g_stop.store(true);
+  std::signal(sig, SIG_DFL);
+  static const char kSay[] =
+      "\nmpm: stopping at the end of this frame (its frame and checkpoint are written); "
+      "signal again to stop now\n";
+  [[maybe_unused]] const ssize_t ignored = write(STDERR_FILENO, kSay, sizeof kSay - 1);
+}
 
 /// The plugins the command line allows (--plugin, --allow-scene-plugins).
 mpm::PluginPolicy plugin_policy(const Args& args) {

@@ -224,13 +224,6 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
           break;
         }
         if (result.status != "ok") break;
-        const bool stopping = stop && stop->load();
-        if (domain ? parallel::any_all(stopping) : stopping) {
-          result.status = "interrupted";
-          result.message = "stopped by a signal at substep " + std::to_string(sim.substeps()) +
-                           "; the last complete frame is " + std::to_string(f - 1);
-          break;
-        }
       }
       if (steps.substeps == 0) steps.dt_min = 0;
       result.steps.push_back(steps);
@@ -286,6 +279,16 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       });
       result.observer_seconds += seconds_since(t0);
       agree();
+      // A stop request ends the run at a frame end, with the frame written: the output's
+      // on_finish then writes this frame's checkpoint, so nothing computed is lost.
+      const bool stopping = stop && stop->load() && f < frames && result.status == "ok";
+      if (domain ? parallel::any_all(stopping) : stopping) {
+        result.status = "interrupted";
+        result.message = "stopped by a signal after frame " + std::to_string(f) + " (substep " +
+                         std::to_string(sim.substeps()) +
+                         "), the last complete frame; --resume continues from it";
+        break;
+      }
     }
   } catch (const std::exception& e) {
     result.status = "error";
@@ -300,6 +303,14 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
     }
   }
   if (!std::isfinite(result.dt_min)) result.dt_min = 0;
+  {
+    const auto t0 = clock::now();
+    notify([&] {
+      for (Observer* o : observers) o->on_stop(sim, result);
+    });
+    result.observer_seconds += seconds_since(t0);
+    agree();
+  }
   result.wall_seconds = std::chrono::duration<double>(clock::now() - start).count();
   for (Observer* o : observers) {
     try {

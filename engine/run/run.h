@@ -56,7 +56,10 @@ class Observer {
   virtual void on_substep(const Simulation& sim, int frame) {}
   /// After frame `frame` (1-based) is complete.
   virtual void on_frame(const Simulation& sim, int frame) {}
-  /// Once at the end, whatever the status.
+  /// Once when the frame loop ends, whatever the status, inside the run's timing (final
+  /// writes: its time counts in observer_seconds); an exception sets status error.
+  virtual void on_stop(const Simulation& sim, const RunResult& result) {}
+  /// Once at the end, whatever the status, with the run's times.
   virtual void on_finish(const Simulation& sim, const RunResult& result) {}
   /// True for an observer whose frame-end work is a reduction (engine/parallel/comm.h): with
   /// more than one rank it is called on every rank with the rank's own particles, before the
@@ -78,8 +81,8 @@ inline constexpr Real kEnergyGrowthLimit = 0.5;
 /// Runs frames first_frame..frames, frame f ending at time f * frame_dt (the state is at frame
 /// first_frame - 1 on entry: 0 for a new run, the checkpoint's frame when resuming). An observer
 /// that throws std::exception ends the run with status "error"; a non-finite particle ends it
-/// with status "unstable"; `stop` becoming true (e.g. from a signal handler) ends it after the
-/// current substep with status "interrupted".
+/// with status "unstable"; `stop` becoming true (e.g. from a signal handler) ends it at the end
+/// of the current frame, after its observers, with status "interrupted".
 RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
                      const std::vector<Observer*>& observers,
                      const std::atomic<bool>* stop = nullptr, int first_frame = 1);

@@ -301,6 +301,8 @@ OutputDesc read_output(ParamReader r) {
   o.preview_size = r.get_or("preview_size", o.preview_size);
   for (int i = 0; i < 2; ++i) r.check_range("preview_size", o.preview_size[i], 16, 8192);
   o.checkpoint = r.get_or("checkpoint", o.checkpoint);
+  o.checkpoint_interval = r.get_or("checkpoint_interval", o.checkpoint_interval);
+  r.check_range("checkpoint_interval", o.checkpoint_interval, 0, 1e9);
   if (r.has("surface")) o.surface = read_surface(r.child("surface"));
   r.finish();
   return o;

@@ -143,6 +143,9 @@ struct OutputDesc {
   std::optional<CameraDesc> camera;            ///< PNG camera; default frames the grid.
   Vec2i preview_size{640, 480};                ///< PNG width and height, pixels.
   bool checkpoint = true;                      ///< Keep DIR/checkpoint.h5 for --resume.
+  /// Wall-clock seconds between checkpoints (0: after every frame); one is also written at
+  /// the end of the run, when it is stopped by a signal, and after an observer's error.
+  double checkpoint_interval = 15;
   SurfaceDesc surface;                         ///< Surfaces for the mesh and vdb formats.
 };
 

@@ -224,3 +224,42 @@ TEST_CASE("corotated: Kirchhoff stress matches the one from the SVD's rotation",
     CHECK((m.kirchhoff(F) - ref).norm() <= 1e-13 * l.lambda);
   }
 }
+
+TEST_CASE("distance_to_rotation_squared equals |F - R|^2 without R, through its fallback too",
+          "[materials]") {
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<double> u(0.5, 1.5), small(0.01, 0.4);
+  // |F - R|^2 by the stress's own R, against the root-only route: the subtraction
+  // |F|^2 - 2 tr(R^T F) + 3 costs a few ulps of its terms, about 1e-15 (1 + |F|^2).
+  auto check = [](const Mat3& F) {
+    Real J, J_ref;
+    const Real d2 = distance_to_rotation_squared(F, J);
+    const Real ref = (F - polar_rotation(F, J_ref)).squaredNorm();
+    INFO("F =\n" << F << "\n|F - R|^2 = " << ref << ", root route " << d2);
+    CHECK(J == J_ref);
+    CHECK(std::abs(d2 - ref) <= 4e-15 * (1 + F.squaredNorm()));
+  };
+  for (int k = 0; k < 200; ++k) check(test::random_near_identity(rng, 1.0));
+  for (int k = 0; k < 200; ++k)
+    check(test::random_rotation(rng) *
+          test::random_near_identity(rng, std::pow(10.0, -1 - 0.05 * k)));
+  for (int k = 0; k < 100; ++k)  // inverted: sigma_3 < 0
+    check(with_singular_values(rng, Vec3(u(rng), u(rng), -small(rng))));
+  Real J;
+  CHECK(distance_to_rotation_squared(Mat3::Identity(), J) == 0);
+  // Where the quaternion method gives up (rank 1, sigma_2 = |sigma_3| inverted) the SVD's
+  // singular values answer.
+  const Mat3 rank1 = Vec3(1, 2, 3) * Vec3(0.5, -1, 2).transpose();
+  REQUIRE_FALSE(quaternion_path(rank1));
+  check(rank1);
+  const Mat3 tie = with_singular_values(rng, Vec3(1.2, 0.7, -0.7));
+  REQUIRE_FALSE(quaternion_path(tie));
+  check(tie);
+  // The fixed corotated energy is built on it: mu |F - R|^2 + lambda / 2 (J - 1)^2.
+  const materials::FixedCorotated m{2.0, 3.0};
+  const Mat3 F = test::random_near_identity(rng, 0.3);
+  const Real Jf = F.determinant();
+  CHECK(m.energy(F) ==
+        Approx(2.0 * (F - polar_rotation(F)).squaredNorm() + 1.5 * (Jf - 1) * (Jf - 1))
+            .epsilon(1e-12));
+}

@@ -44,6 +44,18 @@ int run_mpm(const std::string& args, const std::string& stderr_file = "/dev/null
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+/// The `frame` attribute of a checkpoint: the frame a resumed run continues from.
+int checkpoint_frame(const std::string& file) {
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  REQUIRE(f >= 0);
+  const hid_t attr = H5Aopen(f, "frame", H5P_DEFAULT);
+  int frame = -1;
+  if (attr >= 0) H5Aread(attr, H5T_NATIVE_INT, &frame);
+  if (attr >= 0) H5Aclose(attr);
+  H5Fclose(f);
+  return frame;
+}
+
 /// The whole text of `file`.
 std::string read_text(const std::filesystem::path& file) {
   std::ifstream in(file);
@@ -92,10 +104,37 @@ TEST_CASE("a resumed run equals an uninterrupted one bit for bit", "[regression]
   const YAML::Node ra = YAML::LoadFile(a + "/report.yaml"), rb = YAML::LoadFile(b + "/report.yaml");
   CHECK(ra["substeps"].as<std::size_t>() == rb["substeps"].as<std::size_t>());
   CHECK(rb["frames"].as<int>() == 4);
+  CHECK(rb["checkpoint_frame"].as<int>() == 4);
   // Without --force a finished folder is not overwritten.
   CHECK(run_mpm("run " + scene.string() + " --frames 1 --quiet --out " + a) == 2);
   CHECK(run_mpm("run " + scene.string() + " --frames 1 --quiet --force --out " + a) == 0);
   CHECK_FALSE(std::filesystem::exists(frame_path(a, 2)));
+}
+
+TEST_CASE("the checkpoint is written on its wall-clock interval and always at the end",
+          "[regression]") {
+  const auto dir = test::temp_dir("checkpoint_interval");
+  const auto scene = small_scene(dir);
+  const std::string a = (dir / "a").string(), b = (dir / "b").string();
+  // An interval longer than the run: only the end's checkpoint, of the last frame.
+  REQUIRE(run_mpm("run " + scene.string() + " --frames 3 --quiet --out " + a +
+                  " --set output.checkpoint_interval=1000") == 0);
+  const YAML::Node ra = YAML::LoadFile(a + "/report.yaml");
+  CHECK(ra["checkpoints"].as<int>() == 1);
+  CHECK(ra["checkpoint_frame"].as<int>() == 3);
+  CHECK(checkpoint_frame(a + "/checkpoint.h5") == 3);
+  // Interval 0: after every frame, frame 0 included, as before the interval existed.
+  REQUIRE(run_mpm("run " + scene.string() + " --frames 3 --quiet --out " + b +
+                  " --set output.checkpoint_interval=0") == 0);
+  const YAML::Node rb = YAML::LoadFile(b + "/report.yaml");
+  CHECK(rb["checkpoints"].as<int>() == 4);
+  CHECK(checkpoint_frame(b + "/checkpoint.h5") == 3);
+  // Off: none at all.
+  REQUIRE(run_mpm("run " + scene.string() + " --frames 1 --quiet --force --out " + a +
+                  " --set output.checkpoint=false") == 0);
+  CHECK(YAML::LoadFile(a + "/report.yaml")["checkpoints"].as<int>() == 0);
+  CHECK(run_mpm("run " + scene.string() + " --frames 1 --quiet --force --out " + a +
+                " --set output.checkpoint_interval=-1") == 2);
 }
 
 TEST_CASE("a checkpoint of the other storage precision is refused, not resumed",
@@ -123,7 +162,10 @@ TEST_CASE("a checkpoint of the other storage precision is refused, not resumed",
   CHECK_FALSE(std::filesystem::exists(frame_path(b, 3)));
 }
 
-TEST_CASE("SIGINT stops a run cleanly: frames whole, report says interrupted", "[regression]") {
+TEST_CASE(
+    "SIGINT stops a run at a frame end with its checkpoint; the resumed run ends as an "
+    "uninterrupted one",
+    "[regression]") {
   const auto dir = test::temp_dir("interrupt");
   const auto scene = small_scene(dir);
   const std::string out = (dir / "out").string();
@@ -152,9 +194,23 @@ TEST_CASE("SIGINT stops a run cleanly: frames whole, report says interrupted", "
   CHECK(frames >= 3);
   for (int f = 0; f <= frames; ++f) CHECK_NOTHROW(read_frame_hdf5(frame_path(out, f)));
   CHECK_FALSE(std::filesystem::exists(frame_path(out, frames + 1)));
-  // And the interrupted run resumes.
-  CHECK(run_mpm("run " + scene.string() + " --frames " + std::to_string(frames + 1) +
-            " --quiet --resume " + out) == 0);
+  // The stop wrote the checkpoint of its last frame (the default interval, 15 s, is longer
+  // than the run).
+  CHECK(report["checkpoint_frame"].as<int>() == frames);
+  CHECK(checkpoint_frame(out + "/checkpoint.h5") == frames);
+  // The interrupted run resumes, and ends bit for bit where an uninterrupted one does.
+  const int last = frames + 2;
+  REQUIRE(run_mpm("run " + scene.string() + " --frames " + std::to_string(last) +
+                  " --quiet --resume " + out) == 0);
+  const std::string whole = (dir / "whole").string();
+  REQUIRE(run_mpm("run " + scene.string() + " --frames " + std::to_string(last) +
+                  " --quiet --out " + whole) == 0);
+  const FrameData x = read_frame_hdf5(frame_path(whole, last)),
+                  y = read_frame_hdf5(frame_path(out, last));
+  CHECK(x.position == y.position);
+  CHECK(x.velocity == y.velocity);
+  CHECK(x.J == y.J);
+  CHECK(x.time == y.time);
 }
 
 TEST_CASE("a run made unstable on purpose stops with a diagnosis and keeps its frames",
