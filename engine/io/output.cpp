@@ -79,7 +79,7 @@ std::filesystem::path frame_path(const std::filesystem::path& dir, int frame) {
   return dir / name;
 }
 
-void frame_rows_in_id_order(const Particles& p, Real time, int frame, FrameRows& rows) {
+void frame_rows_in_id_order(const Particles& p, Real time, int frame, FrameData& rows) {
   const std::size_t n = p.size();
   rows.position.resize(3 * n);
   rows.velocity.resize(3 * n);
@@ -103,29 +103,33 @@ void frame_rows_in_id_order(const Particles& p, Real time, int frame, FrameRows&
   }
 }
 
-void write_frame_hdf5(const std::filesystem::path& file, const FrameView& view) {
+FrameData frame_data(const FrameView& view) {
   check_frame_view(view);
   const std::size_t n = view.size();
-  FrameRows rows;
-  rows.position.resize(3 * n);
-  rows.velocity.resize(3 * n);
-  rows.object_id.resize(n);
-  rows.J.resize(n);
-  rows.id.assign(view.particle_id.begin(), view.particle_id.end());
-  rows.time = view.time;
-  rows.frame = view.frame;
+  FrameData d;
+  d.position.resize(3 * n);
+  d.velocity.resize(3 * n);
+  d.object_id.resize(n);
+  d.J.resize(n);
+  d.id.assign(view.particle_id.begin(), view.particle_id.end());
   for (std::size_t i = 0; i < n; ++i) {
     for (int a = 0; a < 3; ++a) {
-      rows.position[3 * i + a] = static_cast<float>(view.position[i][a]);
-      rows.velocity[3 * i + a] = static_cast<float>(view.velocity[i][a]);
+      d.position[3 * i + a] = static_cast<float>(view.position[i][a]);
+      d.velocity[3 * i + a] = static_cast<float>(view.velocity[i][a]);
     }
-    rows.J[i] = static_cast<float>(view.J[i]);
-    rows.object_id[i] = static_cast<int>(view.object_id[i]);
+    d.object_id[i] = static_cast<int>(view.object_id[i]);
+    d.J[i] = static_cast<float>(view.J[i]);
   }
-  write_frame_hdf5(file, rows);
+  d.time = view.time;
+  d.frame = view.frame;
+  return d;
 }
 
-void write_frame_hdf5(const std::filesystem::path& file, const FrameRows& rows) {
+void write_frame_hdf5(const std::filesystem::path& file, const FrameView& view) {
+  write_frame_hdf5(file, frame_data(view));
+}
+
+void write_frame_hdf5(const std::filesystem::path& file, const FrameData& rows) {
   const std::size_t n = rows.size();
   if (rows.position.size() != 3 * n || rows.velocity.size() != 3 * n ||
       rows.object_id.size() != n || rows.id.size() != n)

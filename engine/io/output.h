@@ -11,30 +11,35 @@
 
 namespace mpm {
 
-/// One frame's HDF5 datasets in the file's types, row k the particle with id k.
-struct FrameRows {
+/// One frame's HDF5 datasets in the file's types, row k the particle with id k: what
+/// write_frame_hdf5 writes and read_frame_hdf5 reads back.
+struct FrameData {
   std::vector<float> position;    ///< N x 3, row-major, m.
   std::vector<float> velocity;    ///< N x 3, row-major, m/s.
   std::vector<int> object_id;     ///< N.
   std::vector<float> J;           ///< N, det F.
-  std::vector<std::uint32_t> id;  ///< N: 0 .. N-1.
-  double time = 0;                ///< Simulation time, s.
-  int frame = 0;                  ///< Frame number.
+  std::vector<std::uint32_t> id;  ///< N: the stable particle id.
+  double time = 0;                ///< Attribute "time", s.
+  int frame = 0;                  ///< Attribute "frame".
   /// Number of particles.
-  std::size_t size() const { return J.size(); }
+  std::size_t size() const { return object_id.size(); }
 };
 
 /// Fills `rows` from `p` in the order of the particles' stable ids, in parallel (each particle
 /// writes its own row), converting to float as it goes; the vectors keep their memory, so a
 /// run reusing `rows` allocates nothing per frame.
-void frame_rows_in_id_order(const Particles& p, Real time, int frame, FrameRows& rows);
+void frame_rows_in_id_order(const Particles& p, Real time, int frame, FrameData& rows);
 
 /// Writes `rows` as HDF5 datasets position (N x 3), velocity (N x 3), object_id (N), J (N),
 /// id (N), with attributes time and frame. Writes to a temporary name and renames, so a frame
 /// file is whole or absent. Throws std::runtime_error on failure.
-void write_frame_hdf5(const std::filesystem::path& file, const FrameRows& rows);
+void write_frame_hdf5(const std::filesystem::path& file, const FrameData& rows);
 
-/// write_frame_hdf5 of `frame`'s rows, in the view's order.
+/// The frame's datasets in the view's order, as write_frame_hdf5 stores them (float), so
+/// surfaces built during a run match those built later from its frame files.
+FrameData frame_data(const FrameView& view);
+
+/// write_frame_hdf5 of frame_data(frame).
 void write_frame_hdf5(const std::filesystem::path& file, const FrameView& frame);
 
 /// Arrays a FrameView can point into when the particles are not in id order.
@@ -50,19 +55,6 @@ struct FrameArrays {
 /// the reorder stage left them in, so every frame lists the same particle at the same row.
 /// Points into `p` where it is already in id order, otherwise into `arrays`.
 FrameView frame_in_id_order(const Particles& p, Real time, int frame, FrameArrays& arrays);
-
-/// One frame file read back: the datasets write_frame_hdf5 writes.
-struct FrameData {
-  std::vector<float> position;  ///< N x 3, row-major.
-  std::vector<float> velocity;  ///< N x 3, row-major.
-  std::vector<int> object_id;   ///< N.
-  std::vector<float> J;         ///< N.
-  std::vector<std::uint32_t> id;  ///< N: the stable particle id.
-  double time = 0;              ///< Attribute "time", s.
-  int frame = 0;                ///< Attribute "frame".
-  /// Number of particles.
-  std::size_t size() const { return object_id.size(); }
-};
 
 /// Reads a file written by write_frame_hdf5. Throws std::runtime_error on failure.
 FrameData read_frame_hdf5(const std::filesystem::path& file);
@@ -131,7 +123,7 @@ class FrameOutput : public Observer {
   Real last_frame_time_ = -1;      // sim.time() of the last frame written
   std::chrono::steady_clock::time_point last_checkpoint_ = std::chrono::steady_clock::now();
   FrameArrays scratch_;  // the frame in id order for the formats besides HDF5
-  FrameRows rows_;       // the HDF5 frame, kept between frames (its size is in every peak)
+  FrameData rows_;       // the HDF5 frame, kept between frames (its size is in every peak)
 };
 
 }  // namespace mpm

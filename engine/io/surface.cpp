@@ -149,28 +149,6 @@ std::filesystem::path numbered(const std::filesystem::path& dir, const char* pat
 
 }  // namespace
 
-FrameData frame_data(const FrameView& view) {
-  check_frame_view(view);
-  const std::size_t n = view.size();
-  FrameData d;
-  d.position.resize(3 * n);
-  d.velocity.resize(3 * n);
-  d.object_id.resize(n);
-  d.J.resize(n);
-  d.id.assign(view.particle_id.begin(), view.particle_id.end());
-  for (std::size_t i = 0; i < n; ++i) {
-    for (int a = 0; a < 3; ++a) {
-      d.position[3 * i + a] = static_cast<float>(view.position[i][a]);
-      d.velocity[3 * i + a] = static_cast<float>(view.velocity[i][a]);
-    }
-    d.object_id[i] = static_cast<int>(view.object_id[i]);
-    d.J[i] = static_cast<float>(view.J[i]);
-  }
-  d.time = view.time;
-  d.frame = view.frame;
-  return d;
-}
-
 PlyMesh build_surface(const FrameData& frame, int object, double spacing, const SurfaceDesc& desc) {
   const ObjectLevelSet ls = build_level_set(frame, object, spacing, desc, false);
   return mesh_level_set(*ls.sdf, desc.normals);

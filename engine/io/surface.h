@@ -55,10 +55,6 @@ void write_surfaces(const std::filesystem::path& dir, const FrameData& frame,
                     const std::vector<SurfaceObject>& objects, const SurfaceDesc& desc, bool mesh,
                     bool vdb);
 
-/// The frame as write_frame_hdf5 stores it (float positions and velocities), so surfaces built
-/// during a run match those built later from its frame files.
-FrameData frame_data(const FrameView& view);
-
 /// Name of object `name`'s mesh of frame `frame` in `dir`: frame_00000_<name>.ply.
 std::filesystem::path surface_mesh_path(const std::filesystem::path& dir, int frame,
                                         const std::string& name);
