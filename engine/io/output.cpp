@@ -79,30 +79,6 @@ std::filesystem::path frame_path(const std::filesystem::path& dir, int frame) {
   return dir / name;
 }
 
-void frame_rows_in_id_order(const Particles& p, Real time, int frame, FrameData& rows) {
-  const std::size_t n = p.size();
-  rows.position.resize(3 * n);
-  rows.velocity.resize(3 * n);
-  rows.object_id.resize(n);
-  rows.J.resize(n);
-  rows.id.resize(n);
-  rows.time = static_cast<double>(time);
-  rows.frame = frame;
-  // Particle q goes to row p.id[q]: the ids are a permutation, so no two write the same row.
-  const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(n);
-#pragma omp parallel for schedule(static) if (count >= kParallelMinItems)
-  for (std::ptrdiff_t q = 0; q < count; ++q) {
-    const std::uint32_t i = p.id[q];
-    for (int a = 0; a < 3; ++a) {
-      rows.position[3 * i + a] = static_cast<float>(p.x[q][a]);
-      rows.velocity[3 * i + a] = static_cast<float>(p.v[q][a]);
-    }
-    rows.J[i] = static_cast<float>(to_real(p.F[q]).determinant());
-    rows.object_id[i] = static_cast<int>(p.object[q]);
-    rows.id[i] = i;
-  }
-}
-
 FrameData frame_data(const FrameView& view) {
   check_frame_view(view);
   const std::size_t n = view.size();
@@ -358,18 +334,13 @@ void FrameOutput::write_collective(const Simulation& sim, int frame) {
 
 void FrameOutput::write(const Simulation& sim, int frame) {
   const auto t0 = std::chrono::steady_clock::now();
-  // The other formats take the frame as double views in id order; HDF5 alone (the default)
-  // goes straight from the particles to its float rows.
-  const bool hdf5_only = desc_.formats == std::vector<Format>{Format::hdf5};
-  const FrameView view =
-      hdf5_only ? FrameView{} : frame_in_id_order(sim.particles(), sim.time(), frame, scratch_);
+  const FrameView view = frame_in_id_order(sim.particles(), sim.time(), frame, scratch_);
   for (Format f : desc_.formats) {
     switch (f) {
       case Format::hdf5: {
         if (collective_) break;  // written by every rank before the gather
-        frame_rows_in_id_order(sim.particles(), sim.time(), frame, rows_);
-        write_frame_hdf5(frame_path(dir_, frame), rows_);
-        write_index(sim, frame, rows_.size());
+        write_frame_hdf5(frame_path(dir_, frame), view);
+        write_index(sim, frame, view.size());
         break;
       }
       case Format::bgeo: write_bgeo(numbered(dir_, "frame_%05d.bgeo", frame), view); break;

@@ -25,11 +25,6 @@ struct FrameData {
   std::size_t size() const { return object_id.size(); }
 };
 
-/// Fills `rows` from `p` in the order of the particles' stable ids, in parallel (each particle
-/// writes its own row), converting to float as it goes; the vectors keep their memory, so a
-/// run reusing `rows` allocates nothing per frame.
-void frame_rows_in_id_order(const Particles& p, Real time, int frame, FrameData& rows);
-
 /// Writes `rows` as HDF5 datasets position (N x 3), velocity (N x 3), object_id (N), J (N),
 /// id (N), with attributes time and frame. Writes to a temporary name and renames, so a frame
 /// file is whole or absent. Throws std::runtime_error on failure.
@@ -122,8 +117,7 @@ class FrameOutput : public Observer {
   int checkpoints_ = 0;            // checkpoints written by this run
   Real last_frame_time_ = -1;      // sim.time() of the last frame written
   std::chrono::steady_clock::time_point last_checkpoint_ = std::chrono::steady_clock::now();
-  FrameArrays scratch_;  // the frame in id order for the formats besides HDF5
-  FrameData rows_;       // the HDF5 frame, kept between frames (its size is in every peak)
+  FrameArrays scratch_;  // the frame in id order, while it is written
 };
 
 }  // namespace mpm
