@@ -211,15 +211,15 @@ void Simulation::build_stages() {
   // group whose model has an engine SIMD kernel gets it folded into the SIMD scatter (no
   // stress array, no pass), or, where the scatter is scalar (FLIP), run as its own SIMD pass;
   // any other group runs its compute_stress into Particles::stress.
-  const bool fold_all = s.simd && simd::supports(s.transfer, s.kernel, grid_);
+  const bool simd_transfers = s.simd && simd::supports(s.transfer, s.kernel, grid_);
   std::vector<BatchModel> batch, fold;
   bool stored = false;
   for (const auto& m : materials_) {
     const BatchModel b = m.material->batch_model();
     const bool lanes = s.simd && simd::supports_stress(b);
-    fold.push_back(lanes && fold_all ? b : BatchModel{});
-    batch.push_back(lanes && !fold_all ? b : BatchModel{});
-    stored |= !(lanes && fold_all);
+    fold.push_back(lanes && simd_transfers ? b : BatchModel{});
+    batch.push_back(lanes && !simd_transfers ? b : BatchModel{});
+    stored |= !(lanes && simd_transfers);
   }
   if (!std::any_of(fold.begin(), fold.end(),
                    [](const BatchModel& b) { return b.kind != BatchModel::Kind::none; }))
@@ -275,10 +275,16 @@ void Simulation::build_stages() {
         [this](Real dt) { wall_work_ += apply_colliders(colliders_, time_ + dt, grid_); });
   add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
   if (domain_) exchange("halo_velocity", [this](Real) { domain_->return_ghost_velocities(grid_); });
-  add("grid_to_particles", [this](Real dt) {
+  // On the SIMD path the gather advects each lane set while its x and v are in cache (the
+  // plasticity stage below reads and writes only F and its own state, so the order of the
+  // two does not matter); otherwise advect is a stage of its own.
+  const bool fused_advect = simd_transfers;
+  add("grid_to_particles", [this, fused_advect](Real dt) {
     const SimulationDesc& sd = scene_.simulation;
     grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_,
-                      sd.simd ? TransferPath::simd : TransferPath::scalar);
+                      sd.simd ? TransferPath::simd : TransferPath::scalar,
+                      fused_advect ? &last_advect_ : nullptr);
+    if (fused_advect) clamped_total_ += last_advect_.clamped;
   });
   const bool plastic = std::any_of(materials_.begin(), materials_.end(),
                                    [](const auto& m) { return m.material->has_plasticity(); });
@@ -288,10 +294,11 @@ void Simulation::build_stages() {
         if (m.material->has_plasticity())
           m.material->apply_plasticity_step(slice(particles_.F, m), dt);
     });
-  add("advect", [this](Real dt) {
-    last_advect_ = advect_particles(dt, grid_, particles_);
-    clamped_total_ += last_advect_.clamped;
-  });
+  if (!fused_advect)
+    add("advect", [this](Real dt) {
+      last_advect_ = advect_particles(dt, grid_, particles_);
+      clamped_total_ += last_advect_.clamped;
+    });
   // The run's checks see every rank's advection; particles move to their new slab's rank.
   if (domain_ && parallel::test_failure_requested())
     add("test_failure", [this](Real) { parallel::test_failure_point(substeps_ + 1); });

@@ -341,9 +341,9 @@ void gather_all(const Grid& g, Real flip_blend, Real dt, Particles& p) {
 }  // namespace
 
 void grid_to_particles(const Grid& g, Transfer transfer, Kernel kernel, Real flip_blend,
-                       Real dt, Particles& p, TransferPath path) {
+                       Real dt, Particles& p, TransferPath path, AdvectStats* advect) {
   if (path == TransferPath::simd && simd::supports(transfer, kernel, g))
-    return simd::gather(g, transfer, kernel, dt, p);
+    return simd::gather(g, transfer, kernel, dt, p, advect);
   dispatch_kernel(kernel, [&]<Kernel K>() {
     switch (transfer) {
       case Transfer::mls:
@@ -354,28 +354,17 @@ void grid_to_particles(const Grid& g, Transfer transfer, Kernel kernel, Real fli
       case Transfer::flip: gather_all<K, Transfer::flip>(g, flip_blend, dt, p); break;
     }
   });
+  if (advect) *advect = advect_particles(dt, g, p);
 }
 
 AdvectStats advect_particles(Real dt, const Grid& g, Particles& p) {
-  const Vec3 lo = g.origin + g.buffer * g.h;
-  const Vec3 hi = g.origin + (g.nodes - Vec3i::Ones() - Vec3i::Constant(g.buffer)).cast<Real>()
-                                 .cwiseProduct(g.h);
+  const AdvectBox box(g);
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
   std::size_t clamped = 0, nonfinite = 0;
   Real v2 = 0;
 #pragma omp parallel for schedule(static) reduction(+ : clamped, nonfinite) reduction(max : v2) \
     if (n >= kParallelMinItems)
-  for (std::ptrdiff_t q = 0; q < n; ++q) {
-    v2 = std::max(v2, p.v[q].squaredNorm());
-    const Vec3 x = p.x[q] + dt * p.v[q];
-    if (!x.allFinite()) {
-      ++nonfinite;
-      continue;
-    }
-    const Vec3 c = x.cwiseMax(lo).cwiseMin(hi);
-    if (c != x) ++clamped;
-    p.x[q] = c;
-  }
+  for (std::ptrdiff_t q = 0; q < n; ++q) advect_particle(box, dt, p.v[q], p.x[q], clamped, nonfinite, v2);
   return {clamped, nonfinite, std::sqrt(v2)};
 }
 

@@ -1,6 +1,7 @@
 #pragma once
 /// \file Particle <-> grid transfers and the particle-side stages of a substep.
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -54,21 +55,52 @@ void particles_to_grid(const Particles& p, const ParticleOrder& order, Transfer 
                        TransferPath path = TransferPath::scalar,
                        std::span<const BatchModel> fold = {});
 
-/// Gathers velocity (PIC, FLIP blend, or APIC with C = B D^-1, D = h^2 / 4 quadratic, h^2 / 3
-/// cubic, Jiang et al. 2015 eq. 8-10) into the particles, and updates F <- (I + dt grad v) F
-/// with grad v = sum_i v_i grad w_ip^T (Stomakhin et al. 2013, eq. 7, elastic part), fused so
-/// the gradient is never stored. For the linear kernel APIC takes C = grad v (Jiang et al.
-/// 2015, section 5.3). MLS takes C as APIC does and updates F <- (I + dt C) F (Hu et al.
-/// 2018, eq. 17), so it needs no weight gradients.
-void grid_to_particles(const Grid& grid, Transfer transfer, Kernel kernel, Real flip_blend,
-                       Real dt, Particles& p, TransferPath path = TransferPath::scalar);
-
 /// What advection saw.
 struct AdvectStats {
   std::size_t clamped = 0;    ///< Particles pushed back out of the buffer.
   std::size_t nonfinite = 0;  ///< Particles with a NaN or infinite position (left as they were).
   Real max_speed = 0;         ///< Largest particle speed, m/s.
 };
+
+/// Gathers velocity (PIC, FLIP blend, or APIC with C = B D^-1, D = h^2 / 4 quadratic, h^2 / 3
+/// cubic, Jiang et al. 2015 eq. 8-10) into the particles, and updates F <- (I + dt grad v) F
+/// with grad v = sum_i v_i grad w_ip^T (Stomakhin et al. 2013, eq. 7, elastic part), fused so
+/// the gradient is never stored. For the linear kernel APIC takes C = grad v (Jiang et al.
+/// 2015, section 5.3). MLS takes C as APIC does and updates F <- (I + dt C) F (Hu et al.
+/// 2018, eq. 17), so it needs no weight gradients.
+///
+/// With `advect`, the particles are also advected with their new velocities (as
+/// advect_particles, which then must not run) and what advection saw is written there: on the
+/// SIMD path in the same pass over the particles, so x and v are read from memory once.
+void grid_to_particles(const Grid& grid, Transfer transfer, Kernel kernel, Real flip_blend,
+                       Real dt, Particles& p, TransferPath path = TransferPath::scalar,
+                       AdvectStats* advect = nullptr);
+
+/// The box advection keeps particles in: the grid interior, outside the buffer cells.
+struct AdvectBox {
+  Vec3 lo;  ///< Smallest allowed position, m.
+  Vec3 hi;  ///< Largest allowed position, m.
+  /// The interior of `g`.
+  explicit AdvectBox(const Grid& g)
+      : lo(g.origin + g.buffer * g.h),
+        hi(g.origin + (g.nodes - Vec3i::Ones() - Vec3i::Constant(g.buffer)).cast<Real>()
+                          .cwiseProduct(g.h)) {}
+};
+
+/// One particle's advection, x <- x + dt v kept inside `box` (a non-finite result leaves x as
+/// it was), counted into clamped and nonfinite; v2 becomes the largest squared speed seen.
+inline void advect_particle(const AdvectBox& box, Real dt, const Vec3& v, Vec3& x,
+                            std::size_t& clamped, std::size_t& nonfinite, Real& v2) {
+  v2 = std::max(v2, v.squaredNorm());
+  const Vec3 moved = x + dt * v;
+  if (!moved.allFinite()) {
+    ++nonfinite;
+    return;
+  }
+  const Vec3 c = moved.cwiseMax(box.lo).cwiseMin(box.hi);
+  if (c != moved) ++clamped;
+  x = c;
+}
 
 /// x <- x + dt v, kept inside the grid interior (outside the buffer).
 AdvectStats advect_particles(Real dt, const Grid& grid, Particles& p);

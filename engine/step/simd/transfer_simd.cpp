@@ -27,7 +27,7 @@ namespace HWY_NAMESPACE {
 // One lane cannot hold a stencil's 1D weights: on a CPU without SSE4 the scalar path runs.
 void ScatterImpl(const Particles&, const ParticleOrder&, Transfer, Kernel, Real,
                  std::span<const BatchModel>, Grid&) {}
-void GatherImpl(const Grid&, Transfer, Kernel, Real, Particles&) {}
+void GatherImpl(const Grid&, Transfer, Kernel, Real, Particles&, AdvectStats*) {}
 const char* TargetImpl() {
   return nullptr;
 }
@@ -673,15 +673,59 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   }
 }
 
+/// Advects particles [q0, q0 + count) with their new velocities: advect_particle, in double
+/// lanes for a full batch, where x + dt v is one fused multiply-add on targets that have one
+/// (AVX2, AVX-512), so a position may differ from advect_particle's in its last bit.
+void advect_batch(const AdvectBox& box, Real dt, std::size_t q0, std::size_t count,
+                  Particles& p, std::size_t& clamped, std::size_t& nonfinite, Real& v2) {
+  if (count < kLanes) {
+    for (std::size_t q = q0; q < q0 + count; ++q)
+      advect_particle(box, dt, p.v[q], p.x[q], clamped, nonfinite, v2);
+    return;
+  }
+  const hn::ScalableTag<double> dd;
+  using VD = hn::Vec<decltype(dd)>;
+  const VD vdt = hn::Set(dd, dt);
+  VD top = hn::Set(dd, v2);
+  for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd)) {
+    VD x[3], v[3];
+    hn::LoadInterleaved3(dd, p.x[q0 + h].data(), x[0], x[1], x[2]);
+    hn::LoadInterleaved3(dd, p.v[q0 + h].data(), v[0], v[1], v[2]);
+    const VD s = hn::MulAdd(v[2], v[2], hn::MulAdd(v[1], v[1], hn::Mul(v[0], v[0])));
+    top = hn::IfThenElse(hn::Lt(top, s), s, top);  // std::max(top, s): a NaN speed is not kept
+    VD moved[3], c[3];
+    auto finite = hn::IsFinite(hn::Zero(dd));
+    auto moved_out = hn::Lt(hn::Zero(dd), hn::Zero(dd));
+    for (int a = 0; a < 3; ++a) {
+      moved[a] = hn::MulAdd(vdt, v[a], x[a]);
+      finite = hn::And(finite, hn::IsFinite(moved[a]));
+      c[a] = hn::Min(hn::Max(moved[a], hn::Set(dd, box.lo[a])), hn::Set(dd, box.hi[a]));
+      moved_out = hn::Or(moved_out, hn::Ne(c[a], moved[a]));
+    }
+    nonfinite += hn::CountTrue(dd, hn::Not(finite));
+    clamped += hn::CountTrue(dd, hn::And(finite, moved_out));
+    hn::StoreInterleaved3(hn::IfThenElse(finite, c[0], x[0]), hn::IfThenElse(finite, c[1], x[1]),
+                          hn::IfThenElse(finite, c[2], x[2]), dd, p.x[q0 + h].data());
+  }
+  v2 = hn::GetLane(hn::MaxOfLanes(dd, top));
+}
+
 template <Kernel K, Transfer T>
-void gather_all(const Grid& g, Real dt, Particles& p) {
+void gather_all(const Grid& g, Real dt, Particles& p, AdvectStats* advect) {
   const std::size_t n = p.size();
   const std::ptrdiff_t batches = static_cast<std::ptrdiff_t>((n + kLanes - 1) / kLanes);
-#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+  const AdvectBox box(g);
+  std::size_t clamped = 0, nonfinite = 0;
+  Real v2 = 0;
+#pragma omp parallel for schedule(static) reduction(+ : clamped, nonfinite) reduction(max : v2) \
+    if (n >= kParallelMinItems)
   for (std::ptrdiff_t b = 0; b < batches; ++b) {
     const std::size_t q0 = static_cast<std::size_t>(b) * kLanes;
-    gather_batch<K, T>(g, dt, q0, std::min(kLanes, n - q0), p);
+    const std::size_t count = std::min(kLanes, n - q0);
+    gather_batch<K, T>(g, dt, q0, count, p);
+    if (advect) advect_batch(box, dt, q0, count, p, clamped, nonfinite, v2);
   }
+  if (advect) *advect = {clamped, nonfinite, std::sqrt(v2)};
 }
 
 /// Calls f.template operator()<K, T>() for the transfers the SIMD path handles.
@@ -714,8 +758,8 @@ void ScatterImpl(const Particles& p, const ParticleOrder& ord, Transfer t, Kerne
   dispatch(t, k, [&]<Kernel K, Transfer T>() { scatter_all<K, T>(p, ord, dt, fold, g); });
 }
 
-void GatherImpl(const Grid& g, Transfer t, Kernel k, Real dt, Particles& p) {
-  dispatch(t, k, [&]<Kernel K, Transfer T>() { gather_all<K, T>(g, dt, p); });
+void GatherImpl(const Grid& g, Transfer t, Kernel k, Real dt, Particles& p, AdvectStats* advect) {
+  dispatch(t, k, [&]<Kernel K, Transfer T>() { gather_all<K, T>(g, dt, p, advect); });
 }
 
 const char* TargetImpl() {
@@ -744,7 +788,8 @@ void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, 
   HWY_DYNAMIC_DISPATCH(ScatterImpl)(p, order, transfer, kernel, dt, fold, grid);
 }
 
-void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p) {
+void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,
+            AdvectStats* advect) {
   // Node velocities in float for the lane gathers: (x, y) pairs, then all z.
   const std::size_t nodes = grid.mass.size();
   grid.velocity_f.resize(3 * nodes);
@@ -755,7 +800,7 @@ void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particl
     grid.velocity_f[2 * i + 1] = static_cast<float>(grid.velocity[i].y());
     grid.velocity_f[2 * nodes + i] = static_cast<float>(grid.velocity[i].z());
   }
-  HWY_DYNAMIC_DISPATCH(GatherImpl)(grid, transfer, kernel, dt, p);
+  HWY_DYNAMIC_DISPATCH(GatherImpl)(grid, transfer, kernel, dt, p, advect);
 }
 
 const char* target_name() {
