@@ -7,13 +7,16 @@ namespace mpm {
 
 namespace {
 
-/// Applies the permutation `dest` (new index of each particle) to range r's particles by
-/// following its cycles; `dest` becomes the identity on r. Moves x, F, id, the state and, with
-/// `move_velocity`, v.
-void apply_cycles(const ReorderRange& r, bool move_velocity, std::vector<std::uint32_t>& dest,
-                  Particles& p) {
+/// Pieces each range's cycle walk is cut into (where dest allows), for the threads to share.
+constexpr std::size_t kReorderPieces = 8;
+
+/// Applies the permutation `dest` (new index of each particle) to particles [begin, end) of
+/// range r, which `dest` maps onto themselves, by following its cycles; `dest` becomes the
+/// identity there. Moves x, F, id, the state and, with `move_velocity`, v.
+void apply_cycles(const ReorderRange& r, std::size_t begin, std::size_t end, bool move_velocity,
+                  std::vector<std::uint32_t>& dest, Particles& p) {
   const std::size_t s = r.count > 0 ? r.state.size() / r.count : 0;
-  for (std::size_t q = r.first; q < r.first + r.count; ++q) {
+  for (std::size_t q = begin; q < end; ++q) {
     while (dest[q] != q) {
       const std::uint32_t d = dest[q];
       // The next step swaps q with dest[d]: start loading that particle now.
@@ -79,10 +82,33 @@ void reorder_particles(std::span<const ReorderRange> ranges, bool move_velocity,
   }
   // Apply the permutation in place by following its cycles: swapping q with dest[q] puts q's
   // particle in its place and brings the one from there to q, until q holds its own. A cycle
-  // never leaves its range, so the ranges (objects) are walked in parallel.
-  const std::ptrdiff_t nranges = static_cast<std::ptrdiff_t>(ranges.size());
+  // never leaves its range, nor a piece [b, c) that dest maps onto itself (a cut c with
+  // dest[q] < c for every q < c of the range: found close to any index, since particles move
+  // only to nearby cells), so the pieces are walked in parallel. Where the cuts fall does
+  // not change the result.
+  struct Piece {
+    std::size_t range, begin, end;
+  };
+  std::vector<Piece> pieces;
+  for (std::size_t r = 0; r < ranges.size(); ++r) {
+    const std::size_t first = ranges[r].first, last = first + ranges[r].count;
+    std::size_t begin = first, q = first, reach = first;  // reach: max dest over [first, q)
+    for (std::size_t t = 1; t < kReorderPieces; ++t) {
+      // The first cut at or after the t-th of kReorderPieces equal parts; the search from the
+      // previous cut is one pass over the range in all.
+      const std::size_t target = first + ranges[r].count * t / kReorderPieces;
+      for (; q < last && (q < target || reach >= q); ++q)
+        reach = std::max<std::size_t>(reach, dest[q]);
+      if (q >= last) break;
+      pieces.push_back({r, begin, q});
+      begin = q;
+    }
+    pieces.push_back({r, begin, last});
+  }
+  const std::ptrdiff_t npieces = static_cast<std::ptrdiff_t>(pieces.size());
 #pragma omp parallel for schedule(dynamic, 1) if (n >= kParallelMinItems)
-  for (std::ptrdiff_t r = 0; r < nranges; ++r) apply_cycles(ranges[r], move_velocity, dest, p);
+  for (std::ptrdiff_t i = 0; i < npieces; ++i)
+    apply_cycles(ranges[pieces[i].range], pieces[i].begin, pieces[i].end, move_velocity, dest, p);
 }
 
 }  // namespace mpm
