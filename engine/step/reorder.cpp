@@ -8,28 +8,26 @@ namespace mpm {
 namespace {
 
 /// Smallest piece a range's cycle walk is cut into where dest allows: the threads share the
-/// pieces, and a piece's particles (52 to 124 bytes each) stay in a core's cache while its
-/// cycles are walked.
+/// pieces, and a piece's particles stay in a core's cache while its cycles are walked.
 constexpr std::size_t kReorderPiece = 4096;
+
+/// Which arrays the cycle walk moves (those no dead array of the same type can take).
+struct CycleFields {
+  bool x = false, v = false, F = false;
+};
 
 /// Applies the permutation `dest` (new index of each particle) to particles [begin, end) of
 /// range r, which `dest` maps onto themselves, by following its cycles; `dest` becomes the
-/// identity there. Moves x, F, id, the state and, with `move_velocity`, v.
-void apply_cycles(const ReorderRange& r, std::size_t begin, std::size_t end, bool move_velocity,
+/// identity there. Moves the arrays `f` names and the range's material state.
+void apply_cycles(const ReorderRange& r, std::size_t begin, std::size_t end, CycleFields f,
                   std::vector<std::uint32_t>& dest, Particles& p) {
   const std::size_t s = r.count > 0 ? r.state.size() / r.count : 0;
   for (std::size_t q = begin; q < end; ++q) {
     while (dest[q] != q) {
       const std::uint32_t d = dest[q];
-      // The next step swaps q with dest[d]: start loading that particle now.
-      const std::uint32_t next = dest[d];
-      __builtin_prefetch(&p.x[next], 1);
-      __builtin_prefetch(&p.F[next], 1);
-      if (move_velocity) __builtin_prefetch(&p.v[next], 1);
-      std::swap(p.x[q], p.x[d]);
-      std::swap(p.F[q], p.F[d]);
-      if (move_velocity) std::swap(p.v[q], p.v[d]);
-      std::swap(p.id[q], p.id[d]);
+      if (f.x) std::swap(p.x[q], p.x[d]);
+      if (f.F) std::swap(p.F[q], p.F[d]);
+      if (f.v) std::swap(p.v[q], p.v[d]);
       if (s > 0)
         std::swap_ranges(r.state.begin() + (q - r.first) * s,
                          r.state.begin() + (q - r.first + 1) * s,
@@ -37,6 +35,18 @@ void apply_cycles(const ReorderRange& r, std::size_t begin, std::size_t end, boo
       std::swap(dest[q], dest[d]);
     }
   }
+}
+
+/// to[dest[q]] = from[q] for every particle, in parallel; then `from` holds the result and
+/// `to` what `from` held.
+template <class T>
+void permute_into(const std::vector<std::uint32_t>& dest, std::vector<T>& from,
+                  std::vector<T>& to) {
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(from.size());
+  to.resize(from.size());
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+  for (std::ptrdiff_t q = 0; q < n; ++q) to[dest[q]] = from[q];
+  from.swap(to);
 }
 
 }  // namespace
@@ -82,12 +92,28 @@ void reorder_particles(std::span<const ReorderRange> ranges, bool move_velocity,
       dest[q] = static_cast<std::uint32_t>(at[p.object[q]]++);
     }
   }
-  // Apply the permutation in place by following its cycles: swapping q with dest[q] puts q's
-  // particle in its place and brings the one from there to q, until q holds its own. A cycle
-  // never leaves its range, nor a piece [b, c) that dest maps onto itself (a cut c with
-  // dest[q] < c for every q < c of the range: found close to any index, since particles move
-  // only to nearby cells), so the pieces are walked in parallel. Where the cuts fall does
-  // not change the result.
+  // Arrays with a dead array of their type beside them move out of place, in parallel, and
+  // swap buffers with it: between the transfers v and C are dead (grid_to_particles
+  // overwrites them) unless FLIP blends the old v (it keeps no C), and the sorted order is
+  // spent. The rest follow the cycles below.
+  permute_into(dest, p.id, order.order);
+  CycleFields cycle;
+  if (move_velocity)
+    cycle.x = cycle.v = true;
+  else
+    permute_into(dest, p.x, p.v);
+  if (p.C.size() == n)
+    permute_into(dest, p.F, p.C);
+  else
+    cycle.F = true;
+  const bool states = std::any_of(ranges.begin(), ranges.end(),
+                                  [](const ReorderRange& r) { return !r.state.empty(); });
+  if (!cycle.x && !cycle.F && !states) return;
+  // In place by following the cycles: swapping q with dest[q] puts q's particle in its place
+  // and brings the one from there to q, until q holds its own. A cycle never leaves its
+  // range, nor a piece [b, c) that dest maps onto itself (a cut c with dest[q] < c for every
+  // q < c of the range), so the pieces are walked in parallel. Where the cuts fall does not
+  // change the result.
   struct Piece {
     std::size_t range, begin, end;
   };
@@ -107,7 +133,7 @@ void reorder_particles(std::span<const ReorderRange> ranges, bool move_velocity,
   const std::ptrdiff_t npieces = static_cast<std::ptrdiff_t>(pieces.size());
 #pragma omp parallel for schedule(dynamic, 1) if (n >= kParallelMinItems)
   for (std::ptrdiff_t i = 0; i < npieces; ++i)
-    apply_cycles(ranges[pieces[i].range], pieces[i].begin, pieces[i].end, move_velocity, dest, p);
+    apply_cycles(ranges[pieces[i].range], pieces[i].begin, pieces[i].end, cycle, dest, p);
 }
 
 }  // namespace mpm

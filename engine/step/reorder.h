@@ -24,7 +24,9 @@ struct ReorderRange {
 /// runs between particles_to_grid and grid_to_particles, where v and C are dead for PIC, APIC
 /// and MLS (grid_to_particles overwrites them): it moves x, F, id and the state, and v only
 /// with `move_velocity` (FLIP blends the old v). The permutation is held in `order.keys` (no
-/// array of its own), so `order` is spent until the next sort. Ties in the stable counting
+/// array of its own), so `order` is spent until the next sort. No memory is added: x, F and
+/// id are written out of place into the dead v, C and order.order and swap buffers with them
+/// (x and F by in-place cycles where no dead array is there: FLIP, PIC). Ties in the stable counting
 /// sort are broken by memory index, so reordering changes which particle of a cell is summed
 /// first: results change at round-off only, and stay the same for any thread count.
 void reorder_particles(std::span<const ReorderRange> ranges, bool move_velocity,

@@ -275,14 +275,30 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
       for (int e = 0; e < 3; ++e)
         for (int a = 0; a < 3; ++a) hn::Store(c[3 * a + e], d, cm[e][a]);
     }
+  const hn::ScalableTag<double> dd;
+  const hn::Rebind<float, decltype(dd)> dh;
+  if (consecutive) {
+    // x and v three axes at a time, as the gather loads x.
+    const std::uint32_t first = ord.order[b0];
+    for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd)) {
+      hn::Vec<decltype(dd)> x[3], v[3];
+      hn::LoadInterleaved3(dd, p.x[first + h].data(), x[0], x[1], x[2]);
+      hn::LoadInterleaved3(dd, p.v[first + h].data(), v[0], v[1], v[2]);
+      for (int a = 0; a < 3; ++a) {
+        hn::Store(x[a], dd, xs[a] + h);
+        hn::Store(hn::DemoteTo(dh, v[a]), dh, vel[a] + h);
+      }
+    }
+  }
   for (std::size_t l = 0; l < kLanes; ++l) {
     const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
+    pb.m[l] = static_cast<float>(p.mass(pi));
+    if (consecutive) continue;
     for (int a = 0; a < 3; ++a) {
       xs[a][l] = p.x[pi][a];
       vel[a][l] = static_cast<float>(p.v[pi][a]);
     }
-    pb.m[l] = static_cast<float>(p.mass(pi));
-    if (kAffine && !consecutive) {
+    if constexpr (kAffine) {
       const StoredReal* C = p.C[pi].data();  // column-major
       for (int e = 0; e < 3; ++e)
         for (int a = 0; a < 3; ++a) cm[e][a][l] = static_cast<float>(C[3 * a + e]);
@@ -290,8 +306,6 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
   }
   // The stencil (base, 1D weights and derivatives) in double lanes, as make_stencil computes
   // it, each value rounded to float once.
-  const hn::ScalableTag<double> dd;
-  const hn::Rebind<float, decltype(dd)> dh;
   for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd))
     for (int a = 0; a < 3; ++a) {
       hn::Vec<decltype(dd)> w[N], dw[N];
