@@ -15,9 +15,15 @@ namespace mpm {
 
 namespace {
 
-/// Slab width (cells along x) so that slabs two apart never write the same node: a particle
-/// whose stencil base lies in slab s writes nodes up to W (s + 1) - 1 + (N - 1) < W (s + 2).
+/// Smallest slab width (cells along x) so that slabs two apart never write the same node: a
+/// particle whose stencil base lies in slab s, cells [X_s, X_s+1), writes nodes up to
+/// X_s+1 - 1 + (N - 1) < X_s+2 when X_s+2 - X_s+1 >= N - 1.
 int slab_width(Kernel k) { return std::max(2, kernel_nodes(k) - 1); }
+
+/// Slabs per substep when the box is wide enough: an even number, so that each colour's
+/// slabs (kSlabs / 2 of about equal particle counts) share out evenly over 2, 4 or 8 threads.
+/// A constant, not the thread count, so the sums are the same for any count.
+constexpr int kSlabs = 16;
 
 /// Gives storage to the grid blocks that hold a node of some particle's stencil: every
 /// non-empty cell (counts is the prefix sum over the cells of the box lo + [0, ext)) marks the
@@ -110,14 +116,21 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
       ord.order[mine[keys[i]]++] = static_cast<std::uint32_t>(i);
   }
   activate_touched_blocks<K>(ord, lo, ext, grid);
+  // Slab boundaries at x-planes of cells, each slab at least `width` planes thick, placed
+  // where the count of particles before them is nearest above s n / slabs: the slabs of a
+  // colour hold about the same number of particles, so threads finish a colour together.
   const int width = slab_width(K);
-  const int slabs = (ext.x() + width - 1) / width;
-  ord.slab_start.resize(slabs + 1);
+  const int slabs = std::max(1, std::min(kSlabs, ext.x() / width) & ~1);
   const std::size_t plane = static_cast<std::size_t>(ext.y()) * ext.z();
-  for (int s = 0; s <= slabs; ++s) {
-    const std::size_t x = std::min<std::size_t>(static_cast<std::size_t>(s) * width, ext.x());
-    ord.slab_start[s] = ord.counts[x * plane];
+  ord.slab_start.assign(1, 0);
+  for (int s = 1, x = 0; s < slabs; ++s) {
+    const int latest = ext.x() - (slabs - s) * width;  // room for the slabs after this one
+    int next = x + width;
+    while (next < latest && ord.counts[next * plane] < n * s / slabs) ++next;
+    ord.slab_start.push_back(ord.counts[next * plane]);
+    x = next;
   }
+  ord.slab_start.push_back(n);
 }
 
 }  // namespace

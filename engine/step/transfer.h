@@ -15,9 +15,10 @@ namespace mpm {
 
 /// Particles ordered by the grid cell of their stencil, with slabs for race-free scatter.
 ///
-/// Slabs are a few cells thick along x. A particle in slab s writes only nodes of slabs s and
-/// s + 1, so all even slabs can scatter at once, then all odd ones, with no atomics. The slab
-/// width depends on the kernel only, not the thread count, so sums are the same for any count.
+/// Slabs are a few cells thick along x (at least the kernel's width, about equal particle
+/// counts). A particle in slab s writes only nodes of slabs s and s + 1, so all even slabs can
+/// scatter at once, then all odd ones, with no atomics. Slabs depend on the particles and the
+/// kernel only, not the thread count, so sums are the same for any count.
 struct ParticleOrder {
   std::vector<std::uint32_t> order;     ///< Particle indices sorted by stencil base cell.
   std::vector<std::size_t> slab_start;  ///< order[slab_start[s] .. slab_start[s+1]) is slab s.
