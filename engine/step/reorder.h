@@ -26,9 +26,9 @@ struct ReorderRange {
 /// with `move_velocity` (FLIP blends the old v). The permutation is held in `order.keys` (no
 /// array of its own), so `order` is spent until the next sort. No memory is added: x, F and
 /// id are written out of place into the dead v, C and order.order and swap buffers with them
-/// (x and F by in-place cycles where no dead array is there: FLIP, PIC). Ties in the stable counting
-/// sort are broken by memory index, so reordering changes which particle of a cell is summed
-/// first: results change at round-off only, and stay the same for any thread count.
+/// (x and F by in-place cycles where no dead array is there: FLIP, PIC). Ties in the stable
+/// counting sort are broken by memory index, so reordering changes which particle of a cell
+/// is summed first: results change at round-off only, and stay the same for any thread count.
 void reorder_particles(std::span<const ReorderRange> ranges, bool move_velocity,
                        ParticleOrder& order, Particles& p);
 

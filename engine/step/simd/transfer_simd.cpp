@@ -731,9 +731,10 @@ void gather_all(const Grid& g, Real dt, Particles& p, AdvectStats* advect) {
   const AdvectBox box(g);
   std::size_t clamped = 0, nonfinite = 0;
   Real v2 = 0;
-  // Handed out in chunks of 64 lane sets as threads come free: on a machine whose cores'
-  // speeds differ from minute to minute (a virtual machine sharing its host) the faster core
-  // takes more. Every particle's values are its own, so they do not depend on the schedule.
+  // Handed out guided (chunks shrinking to 64 lane sets) as threads come free: on a machine
+  // whose cores' speeds differ from minute to minute (a virtual machine sharing its host) the
+  // faster core takes more, and large first chunks keep each core on its own part of the
+  // grid. Every particle's values are its own, so they do not depend on the schedule.
 #pragma omp parallel for schedule(guided, 64) reduction(+ : clamped, nonfinite) \
     reduction(max : v2) if (n >= kParallelMinItems)
   for (std::ptrdiff_t b = 0; b < batches; ++b) {

@@ -34,7 +34,7 @@ void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, 
 /// grid_to_particles with one SIMD lane per particle, L consecutive particles at a time: the
 /// weights computed once per lane set, node velocities gathered from grid.velocity_f (which
 /// this fills from grid.velocity). With `advect`, each lane set is then advected in lanes
-/// (the values advect_particles gives) and the counts written there.
+/// (advect_particle's operations, x + dt v as one FMA) and the counts written there.
 void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,
             AdvectStats* advect = nullptr);
 
