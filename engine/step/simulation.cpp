@@ -275,16 +275,14 @@ void Simulation::build_stages() {
         [this](Real dt) { wall_work_ += apply_colliders(colliders_, time_ + dt, grid_); });
   add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
   if (domain_) exchange("halo_velocity", [this](Real) { domain_->return_ghost_velocities(grid_); });
-  // On the SIMD path the gather advects each lane set while its x and v are in cache (the
-  // plasticity stage below reads and writes only F and its own state, so the order of the
-  // two does not matter); otherwise advect is a stage of its own.
-  const bool fused_advect = simd_transfers;
-  add("grid_to_particles", [this, fused_advect](Real dt) {
+  // Advection runs inside the gather: on the SIMD path each lane set is advected while its x
+  // and v are in cache (the plasticity stage below reads and writes only F and its own state,
+  // so the order of the two does not matter).
+  add("grid_to_particles", [this](Real dt) {
     const SimulationDesc& sd = scene_.simulation;
     grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_,
-                      sd.simd ? TransferPath::simd : TransferPath::scalar,
-                      fused_advect ? &last_advect_ : nullptr);
-    if (fused_advect) clamped_total_ += last_advect_.clamped;
+                      sd.simd ? TransferPath::simd : TransferPath::scalar, &last_advect_);
+    clamped_total_ += last_advect_.clamped;
   });
   const bool plastic = std::any_of(materials_.begin(), materials_.end(),
                                    [](const auto& m) { return m.material->has_plasticity(); });
@@ -293,11 +291,6 @@ void Simulation::build_stages() {
       for (auto& m : materials_)
         if (m.material->has_plasticity())
           m.material->apply_plasticity_step(slice(particles_.F, m), dt);
-    });
-  if (!fused_advect)
-    add("advect", [this](Real dt) {
-      last_advect_ = advect_particles(dt, grid_, particles_);
-      clamped_total_ += last_advect_.clamped;
     });
   // The run's checks see every rank's advection; particles move to their new slab's rank.
   if (domain_ && parallel::test_failure_requested())

@@ -379,7 +379,8 @@ AdvectStats advect_particles(Real dt, const Grid& g, Particles& p) {
   Real v2 = 0;
 #pragma omp parallel for schedule(static) reduction(+ : clamped, nonfinite) reduction(max : v2) \
     if (n >= kParallelMinItems)
-  for (std::ptrdiff_t q = 0; q < n; ++q) advect_particle(box, dt, p.v[q], p.x[q], clamped, nonfinite, v2);
+  for (std::ptrdiff_t q = 0; q < n; ++q)
+    advect_particle(box, dt, p.v[q], p.x[q], clamped, nonfinite, v2);
   return {clamped, nonfinite, std::sqrt(v2)};
 }
 

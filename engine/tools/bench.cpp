@@ -69,11 +69,14 @@ BenchResult run_whole_scene(const std::string& name, bool simd) {
                                     ("mpm-bench-" + name + "-" + std::to_string(getpid()));
   prepare_output_directory(out, true);
   RunResult run;
-  {
+  try {
     FrameOutput output(out, scene.output, 0);
     SummaryWriter summary(out);
     run = run_frames(*sim, scene.simulation.frames, scene.simulation.frame_dt,
                      {&output, &summary});
+  } catch (...) {
+    std::filesystem::remove_all(out);  // no gigabyte of frames left behind in the temp folder
+    throw;
   }
   std::filesystem::remove_all(out);
   if (run.status != "ok") throw std::runtime_error(name + " ended " + run.status);
