@@ -77,6 +77,14 @@ struct Grid {
           out[c++] = first[blk[0][i]][blk[1][j]][blk[2][k]] +
                      ((off[0][i] << (2 * kBlockBits)) | (off[1][j] << kBlockBits) | off[2][k]);
   }
+  /// Storage index of node (i, j, k), whose block must be active.
+  std::size_t node_index(int i, int j, int k) const {
+    const std::int32_t s = slot[page(i >> kBlockBits, j >> kBlockBits, k >> kBlockBits)];
+    assert(s >= 0 && "the sort activates every block a stencil touches");
+    constexpr int m = kBlockEdge - 1;
+    return static_cast<std::size_t>(s) * kBlockNodes +
+           (((i & m) << (2 * kBlockBits)) | ((j & m) << kBlockBits) | (k & m));
+  }
   /// World position of node (i, j, k), m.
   Vec3 position(int i, int j, int k) const {
     return origin + Vec3(i, j, k).cwiseProduct(h);

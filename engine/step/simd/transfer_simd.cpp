@@ -375,19 +375,74 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
     const int m = n < kNodes ? n : 0;
     ti[n] = m / (N * N), tj[n] = (m / N) % N, tk[n] = m % N;
   }
+  // The window's slide along z (below): lane n takes lane n + 1's sums, except the lanes of
+  // the new plane k = N - 1 (and padding), which start at zero.
+  alignas(64) std::int32_t keep_bits[NV * kLanes], rotate[kLanes];
+  for (int n = 0; n < NV * static_cast<int>(kLanes); ++n)
+    keep_bits[n] = n < kNodes && n % N != N - 1 ? -1 : 0;
+  for (std::size_t t = 0; t < kLanes; ++t) rotate[t] = static_cast<std::int32_t>((t + 1) % kLanes);
+  const DI di;
+  const auto rot = hn::SetTableIndices(d, rotate);
+  const auto last_lane = hn::RebindMask(
+      d, hn::Eq(hn::Iota(di, 0), hn::Set(di, static_cast<std::int32_t>(kLanes - 1))));
+  hn::Mask<DF> keep[NV];
+  for (int v = 0; v < NV; ++v)
+    keep[v] = hn::RebindMask(d, hn::Ne(hn::Load(di, keep_bits + v * kLanes), hn::Zero(di)));
   alignas(64) float out[4][NV * kLanes];
+  const bool fl = g.float_nodes;
+  // Adds the sums of lanes `lanes` (node n at storage index nodes[c] for the c-th) to the grid.
+  VF acc[4][NV];  // mass, momentum x, y, z per node, summed over the window's cells
+  const auto add_nodes = [&](const std::size_t* nodes, int count, int stride) {
+    for (int a = 0; a < 4; ++a)
+      for (int v = 0; v < NV; ++v) hn::Store(acc[a][v], d, out[a] + v * kLanes);
+    for (int c = 0; c < count; ++c) {
+      const std::size_t x = nodes[c];
+      const int n = c * stride;
+      g.mass[x] = store_node(g.mass[x] + out[0][n], fl);
+      for (int e = 0; e < 3; ++e)
+        g.velocity[x][e] = store_node(g.velocity[x][e] + out[1 + e][n], fl);
+    }
+  };
   StressBatch sb;
   ScatterBatch<N> pb;
+  // The window: the sums of the particles of a run of cells along z, on the stencil of the
+  // run's current cell `base`. Particles arrive sorted by cell (z fastest), so the next cell is
+  // usually base + (0, 0, 1): the window then writes its plane k = 0, which no later cell of
+  // the run touches, and slides (each node's sums move to lane k - 1, the new plane starts at
+  // zero) instead of writing all N^3 nodes per cell.
+  Vec3i base = Vec3i::Zero();
+  bool open = false;
   for (std::size_t q = begin; q < end;) {
     const std::uint32_t cell = ord.keys[ord.order[q]];
-    VF acc[4][NV];  // mass, momentum x, y, z per node
-    for (auto& a : acc)
-      for (VF& v : a) v = hn::Zero(d);
-    Vec3i base = Vec3i::Zero();
+    if (q >= pb.b1) fill_batch<K, T>(p, ord, fold, g, dt, q, end, sb, pb);
+    const Vec3i next(pb.base[0][q - pb.b0], pb.base[1][q - pb.b0], pb.base[2][q - pb.b0]);
+    if (open && next == base + Vec3i(0, 0, 1)) {
+      std::size_t plane[N * N];
+      for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j)
+          plane[N * i + j] = g.node_index(base.x() + i, base.y() + j, base.z());
+      add_nodes(plane, N * N, N);
+      for (auto& a : acc) {
+        VF r[NV];
+        for (int v = 0; v < NV; ++v) r[v] = hn::TableLookupLanes(a[v], rot);
+        for (int v = 0; v < NV; ++v)
+          a[v] = hn::IfThenElseZero(keep[v], v + 1 < NV ? hn::IfThenElse(last_lane, r[v + 1], r[v])
+                                                        : r[v]);
+      }
+    } else {
+      if (open) {
+        std::size_t nodes[kNodes];
+        g.stencil_indices<N>(base, nodes);
+        add_nodes(nodes, kNodes, 1);
+      }
+      for (auto& a : acc)
+        for (VF& v : a) v = hn::Zero(d);
+    }
+    base = next;
+    open = true;
     for (; q < end && ord.keys[ord.order[q]] == cell; ++q) {
       if (q >= pb.b1) fill_batch<K, T>(p, ord, fold, g, dt, q, end, sb, pb);
       const std::size_t l = q - pb.b0;
-      base = Vec3i(pb.base[0][l], pb.base[1][l], pb.base[2][l]);
       // Lanes 0 to N - 1 hold the particle's weights and tables (the rest, its neighbours',
       // are never looked up).
       VF W[3], X[3][3];
@@ -411,17 +466,11 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
         }
       }
     }
-    for (int a = 0; a < 4; ++a)
-      for (int v = 0; v < NV; ++v) hn::Store(acc[a][v], d, out[a] + v * kLanes);
+  }
+  if (open) {
     std::size_t nodes[kNodes];
     g.stencil_indices<N>(base, nodes);
-    const bool fl = g.float_nodes;
-    for (int n = 0; n < kNodes; ++n) {
-      const std::size_t x = nodes[n];
-      g.mass[x] = store_node(g.mass[x] + out[0][n], fl);
-      for (int e = 0; e < 3; ++e)
-        g.velocity[x][e] = store_node(g.velocity[x][e] + out[1 + e][n], fl);
-    }
+    add_nodes(nodes, kNodes, 1);
   }
 }
 
