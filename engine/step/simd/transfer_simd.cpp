@@ -650,7 +650,8 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
           const VF ve = v3[e];
           r0[e] = hn::MulAdd(w[2][k], ve, r0[e]);
           if constexpr (kGrad) r1[e] = hn::MulAdd(dw[2][k], ve, r1[e]);
-          if constexpr (kAffine) r2[e] = hn::MulAdd(kw, ve, r2[e]);
+          if constexpr (kAffine)
+            if (k > 0) r2[e] = hn::MulAdd(kw, ve, r2[e]);  // k = 0 adds 0 v
         }
       }
       const VF w01 = hn::Mul(w[0][i], w[1][j]);
@@ -664,9 +665,9 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
           sg[e][1] = hn::MulAdd(gy, r0[e], sg[e][1]);
           sg[e][2] = hn::MulAdd(w01, r1[e], sg[e][2]);
         }
-        if constexpr (kAffine) {
-          sb[e][0] = hn::MulAdd(iw, r0[e], sb[e][0]);
-          sb[e][1] = hn::MulAdd(jw, r0[e], sb[e][1]);
+        if constexpr (kAffine) {  // the index moments skip the zero terms of i = 0, j = 0
+          if (i > 0) sb[e][0] = hn::MulAdd(iw, r0[e], sb[e][0]);
+          if (j > 0) sb[e][1] = hn::MulAdd(jw, r0[e], sb[e][1]);
           sb[e][2] = hn::MulAdd(w01, r2[e], sb[e][2]);
         }
       }
