@@ -606,72 +606,84 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   const hn::Repartition<std::int64_t, DF> di64;
   const hn::Half<DI> dih;
   // Each (i, j) row of the stencil summed over k first (r0: w2, r1: dw2, r2: k w2), then the
-  // rows: v, grad v (column a: d/dx_a) and the index moments sum w v (i, j, k) for B.
+  // rows: v, grad v (column a: d/dx_a) and the index moments sum w v (i, j, k) for B. Done
+  // for components [E0, E1) at a time (x and y, whose node values come in pairs, then z), so
+  // the sums stay in registers: all three at once need more than 32 vectors.
   VF sv[3], sg[3][3], sb[3][3];
   for (int e = 0; e < 3; ++e) {
     sv[e] = hn::Zero(d);
     for (int a = 0; a < 3; ++a) sg[e][a] = sb[e][a] = hn::Zero(d);
   }
-  for (int i = 0; i < N; ++i)
-    for (int j = 0; j < N; ++j) {
-      VF r0[3], r1[3], r2[3];
-      for (int e = 0; e < 3; ++e) r0[e] = r1[e] = r2[e] = hn::Zero(d);
-      const VI oij = hn::Add(off[0][i], off[1][j]);
-      VI sij[2];  // the slots of this row's two z blocks
-      for (int z = 0; z < 2; ++z)
-        sij[z] = hn::IfThenElse(up[1][j], hn::IfThenElse(up[0][i], slots[1][1][z], slots[0][1][z]),
-                                hn::IfThenElse(up[0][i], slots[1][0][z], slots[0][0][z]));
-      for (int k = 0; k < N; ++k) {
-        const VF kw = hn::Mul(hn::Set(d, static_cast<float>(k)), w[2][k]);
-        VF v3[3];
-        if (few) {
-          const int n = (i * N + j) * N + k;
-          const float* vf = g.velocity_f.data();
-          for (int e = 0; e < 3; ++e) {
-            auto node = [&](int r) {
-              const std::size_t x = run_nodes[r][n];
-              return hn::Set(d, e < 2 ? vf[2 * x + e] : vel_z[x]);
-            };
-            v3[e] = node(0);
-            for (int r = 1; r < runs; ++r) v3[e] = hn::IfThenElse(in_run[r], node(r), v3[e]);
+  const auto sum_components = [&](auto e0, auto e1) {
+    constexpr int E0 = decltype(e0)::value, E1 = decltype(e1)::value;
+    for (int i = 0; i < N; ++i)
+      for (int j = 0; j < N; ++j) {
+        VF r0[3], r1[3], r2[3];
+        for (int e = E0; e < E1; ++e) r0[e] = r1[e] = r2[e] = hn::Zero(d);
+        const VI oij = hn::Add(off[0][i], off[1][j]);
+        VI sij[2];  // the slots of this row's two z blocks
+        if (!few)
+          for (int z = 0; z < 2; ++z)
+            sij[z] =
+                hn::IfThenElse(up[1][j], hn::IfThenElse(up[0][i], slots[1][1][z], slots[0][1][z]),
+                               hn::IfThenElse(up[0][i], slots[1][0][z], slots[0][0][z]));
+        for (int k = 0; k < N; ++k) {
+          VF v3[3];
+          if (few) {
+            const int n = (i * N + j) * N + k;
+            const float* vf = g.velocity_f.data();
+            for (int e = E0; e < E1; ++e) {
+              auto node = [&](int r) {
+                const std::size_t x = run_nodes[r][n];
+                return hn::Set(d, e < 2 ? vf[2 * x + e] : vel_z[x]);
+              };
+              v3[e] = node(0);
+              for (int r = 1; r < runs; ++r) v3[e] = hn::IfThenElse(in_run[r], node(r), v3[e]);
+            }
+          } else {
+            const VI sl = hn::IfThenElse(up[2][k], sij[1], sij[0]);
+            const VI vi =
+                hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl), hn::Add(oij, off[2][k]));
+            if constexpr (E0 == 0) {
+              const VF lo = hn::BitCast(
+                  d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::LowerHalf(dih, vi))));
+              const VF hi = hn::BitCast(
+                  d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::UpperHalf(dih, vi))));
+              v3[0] = hn::ConcatEven(d, hi, lo);
+              v3[1] = hn::ConcatOdd(d, hi, lo);
+            }
+            if constexpr (E1 == 3) v3[2] = hn::GatherIndex(d, vel_z, vi);
           }
-        } else {
-          const VI sl = hn::IfThenElse(up[2][k], sij[1], sij[0]);
-          const VI vi = hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl), hn::Add(oij, off[2][k]));
-          const VF lo = hn::BitCast(
-              d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::LowerHalf(dih, vi))));
-          const VF hi = hn::BitCast(
-              d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::UpperHalf(dih, vi))));
-          v3[0] = hn::ConcatEven(d, hi, lo);
-          v3[1] = hn::ConcatOdd(d, hi, lo);
-          v3[2] = hn::GatherIndex(d, vel_z, vi);
+          for (int e = E0; e < E1; ++e) {
+            const VF ve = v3[e];
+            r0[e] = hn::MulAdd(w[2][k], ve, r0[e]);
+            if constexpr (kGrad) r1[e] = hn::MulAdd(dw[2][k], ve, r1[e]);
+            if constexpr (kAffine)  // k = 0 adds 0 v
+              if (k > 0)
+                r2[e] = hn::MulAdd(hn::Mul(hn::Set(d, static_cast<float>(k)), w[2][k]), ve, r2[e]);
+          }
         }
-        for (int e = 0; e < 3; ++e) {
-          const VF ve = v3[e];
-          r0[e] = hn::MulAdd(w[2][k], ve, r0[e]);
-          if constexpr (kGrad) r1[e] = hn::MulAdd(dw[2][k], ve, r1[e]);
-          if constexpr (kAffine)
-            if (k > 0) r2[e] = hn::MulAdd(kw, ve, r2[e]);  // k = 0 adds 0 v
-        }
-      }
-      const VF w01 = hn::Mul(w[0][i], w[1][j]);
-      const VF gx = hn::Mul(dw[0][i], w[1][j]), gy = hn::Mul(w[0][i], dw[1][j]);
-      const VF iw = hn::Mul(hn::Set(d, static_cast<float>(i)), w01);
-      const VF jw = hn::Mul(hn::Set(d, static_cast<float>(j)), w01);
-      for (int e = 0; e < 3; ++e) {
-        sv[e] = hn::MulAdd(w01, r0[e], sv[e]);
-        if constexpr (kGrad) {
-          sg[e][0] = hn::MulAdd(gx, r0[e], sg[e][0]);
-          sg[e][1] = hn::MulAdd(gy, r0[e], sg[e][1]);
-          sg[e][2] = hn::MulAdd(w01, r1[e], sg[e][2]);
-        }
-        if constexpr (kAffine) {  // the index moments skip the zero terms of i = 0, j = 0
-          if (i > 0) sb[e][0] = hn::MulAdd(iw, r0[e], sb[e][0]);
-          if (j > 0) sb[e][1] = hn::MulAdd(jw, r0[e], sb[e][1]);
-          sb[e][2] = hn::MulAdd(w01, r2[e], sb[e][2]);
+        const VF w01 = hn::Mul(w[0][i], w[1][j]);
+        const VF gx = hn::Mul(dw[0][i], w[1][j]), gy = hn::Mul(w[0][i], dw[1][j]);
+        const VF iw = hn::Mul(hn::Set(d, static_cast<float>(i)), w01);
+        const VF jw = hn::Mul(hn::Set(d, static_cast<float>(j)), w01);
+        for (int e = E0; e < E1; ++e) {
+          sv[e] = hn::MulAdd(w01, r0[e], sv[e]);
+          if constexpr (kGrad) {
+            sg[e][0] = hn::MulAdd(gx, r0[e], sg[e][0]);
+            sg[e][1] = hn::MulAdd(gy, r0[e], sg[e][1]);
+            sg[e][2] = hn::MulAdd(w01, r1[e], sg[e][2]);
+          }
+          if constexpr (kAffine) {  // the index moments skip the zero terms of i = 0, j = 0
+            if (i > 0) sb[e][0] = hn::MulAdd(iw, r0[e], sb[e][0]);
+            if (j > 0) sb[e][1] = hn::MulAdd(jw, r0[e], sb[e][1]);
+            sb[e][2] = hn::MulAdd(w01, r2[e], sb[e][2]);
+          }
         }
       }
-    }
+  };
+  sum_components(std::integral_constant<int, 0>{}, std::integral_constant<int, 2>{});
+  sum_components(std::integral_constant<int, 2>{}, std::integral_constant<int, 3>{});
   // C = B D^-1 with B = v corner^T + sum w v (i, j, k)^T diag(h) (Jiang et al. 2015, eq. 8-10);
   // the linear kernel takes C = grad v (section 5.3).
   VF C[3][3];
