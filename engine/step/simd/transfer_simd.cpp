@@ -159,6 +159,13 @@ inline bool consecutive_batch(const ParticleOrder& ord, std::size_t b0, std::siz
   return hn::AllTrue(du, hn::Eq(hn::LoadU(du, ord.order.data() + b0), hn::Iota(du, ord.order[b0])));
 }
 
+/// True if the kLanes particles from `first` (a consecutive batch) all belong to one object,
+/// whose mass, volume and model the batch then sets once instead of looking up per lane.
+inline bool one_object(const Particles& p, std::uint32_t first) {
+  const hn::RebindToUnsigned<DF> du;
+  return hn::AllTrue(du, hn::Eq(hn::LoadU(du, p.object.data() + first), hn::Set(du, p.object[first])));
+}
+
 /// -V0 tau of the kLanes particles order[b0, b0 + kLanes) (clamped to `end`), for the scatter:
 /// computed in lanes for the objects whose model `fold` names (the stress folded into the
 /// scatter, so it is never stored), read from p.stress for the others.
@@ -168,19 +175,33 @@ struct StressBatch {
 };
 
 /// Fills `sb` with the stresses of order[b0, min(b0 + kLanes, end)); `consecutive`: they are
-/// kLanes consecutive particles (consecutive_batch), whose F load_matrices reads.
+/// kLanes consecutive particles (consecutive_batch), whose F load_matrices reads; `uniform`:
+/// and they belong to one object (one_object).
 void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
-                 std::size_t b0, std::size_t end, bool consecutive, StressBatch& sb) {
+                 std::size_t b0, std::size_t end, bool consecutive, bool uniform,
+                 StressBatch& sb) {
   const DF d;
   sb.b0 = b0;
   sb.b1 = std::min(end, b0 + kLanes);
   const std::size_t count = sb.b1 - b0;
   alignas(64) float in[9][kLanes], mu2[kLanes], lam[kLanes], nv0[kLanes];
   bool any = false;
-  for (std::size_t l = 0; l < kLanes; ++l) {
+  const auto folded = [&](std::uint32_t o) {
+    return o < fold.size() && fold[o].kind == BatchModel::Kind::fixed_corotated;
+  };
+  if (uniform) {
+    const std::uint32_t o = p.object[ord.order[b0]];
+    any = folded(o);
+    if (any) {
+      hn::Store(hn::Set(d, static_cast<float>(2 * fold[o].mu)), d, mu2);
+      hn::Store(hn::Set(d, static_cast<float>(fold[o].lambda)), d, lam);
+      hn::Store(hn::Set(d, static_cast<float>(-p.object_volume0[o])), d, nv0);
+    }
+  }
+  for (std::size_t l = 0; l < kLanes && !uniform; ++l) {
     const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
     const std::uint32_t o = p.object[pi];
-    const bool lane = o < fold.size() && fold[o].kind == BatchModel::Kind::fixed_corotated;
+    const bool lane = folded(o);
     any |= lane && l < count;
     if (!consecutive) {
       const StoredReal* f = p.F[pi].data();
@@ -206,10 +227,11 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
       for (int b = 0; b < 8; ++b) bad |= std::uint64_t{bits[b]} << (8 * b);
     }
   }
+  if (uniform && any && bad == 0) return;  // every lane computed
   for (std::size_t l = 0; l < count; ++l) {
     const std::uint32_t pi = ord.order[b0 + l];
     const std::uint32_t o = p.object[pi];
-    const bool lane = o < fold.size() && fold[o].kind == BatchModel::Kind::fixed_corotated;
+    const bool lane = folded(o);
     if (lane && !(bad >> l & 1)) continue;
     // Not folded (the stress stage wrote p.stress), or a lane the float quaternion cannot
     // give to float accuracy: the scalar double model, as simd::stress does.
@@ -251,8 +273,13 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
   constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
   const DF d;
   // The next batch's particles, requested now so that their loads below (one batch later) do
-  // not wait for memory: the scatter's order only roughly follows memory order.
-  for (std::size_t q = b0 + kLanes; q < std::min(end, b0 + 2 * kLanes); ++q) {
+  // not wait for memory: the scatter's order only roughly follows memory order. Not when this
+  // batch and the next look like one run of memory (ends 2 kLanes - 1 apart), which the
+  // hardware prefetcher follows.
+  const std::size_t ahead = std::min(end, b0 + 2 * kLanes);
+  const bool in_memory_order =
+      ahead == b0 + 2 * kLanes && ord.order[ahead - 1] == ord.order[b0] + 2 * kLanes - 1;
+  for (std::size_t q = b0 + kLanes; q < ahead && !in_memory_order; ++q) {
     const std::uint32_t pi = ord.order[q];
     hwy::Prefetch(&p.x[pi]);
     hwy::Prefetch(&p.v[pi]);
@@ -261,7 +288,8 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
     if constexpr (kAffine) hwy::Prefetch(&p.C[pi]);
   }
   const bool consecutive = consecutive_batch(ord, b0, std::min(end, b0 + kLanes) - b0);
-  fill_stress(p, ord, fold, b0, end, consecutive, sb);
+  const bool uniform = consecutive && one_object(p, ord.order[b0]);
+  fill_stress(p, ord, fold, b0, end, consecutive, uniform, sb);
   pb.b0 = sb.b0;
   pb.b1 = sb.b1;
   const std::size_t count = pb.b1 - pb.b0;
@@ -290,7 +318,8 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
       }
     }
   }
-  for (std::size_t l = 0; l < kLanes; ++l) {
+  if (uniform) hn::Store(hn::Set(d, static_cast<float>(p.mass(ord.order[b0]))), d, pb.m);
+  for (std::size_t l = 0; l < kLanes && !uniform; ++l) {
     const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
     pb.m[l] = static_cast<float>(p.mass(pi));
     if (consecutive) continue;
