@@ -390,47 +390,72 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
 /// particle the node values are sums of products of three 1D factors (weights and the
 /// per-axis momentum tables of ScatterBatch, made kLanes particles at a time), each looked up
 /// per lane from an N-entry row.
+///
+/// Node layout in lanes: with at least N^2 lanes (AVX-512), one vector per plane i, node
+/// (i, j, k) in lane j N + k. The (j, k) products are then formed once per particle and each
+/// plane adds them times its x factors, broadcast: momentum e at (i, j, k) is
+/// X_e(i) A + wx(i) B_e with A = wy wz and B_e = Y_e(j) wz + wy Z_e(k). With fewer lanes,
+/// node n = (i N + j) N + k sits in lane n of NV vectors and takes all three factors by lookup.
 template <Kernel K, Transfer T>
 void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t begin, std::size_t end,
                    Real dt, std::span<const BatchModel> fold, Grid& g) {
   using Traits = KernelTraits<K>;
   constexpr int N = Traits::kNodes, kNodes = N * N * N;
-  constexpr int NV = static_cast<int>((kNodes + kLanes - 1) / kLanes);  // vectors per stencil
+  constexpr bool kPlanes = kLanes >= static_cast<std::size_t>(N * N);
+  constexpr int NV = kPlanes ? N : static_cast<int>((kNodes + kLanes - 1) / kLanes);
+  constexpr int kSlots = NV * static_cast<int>(kLanes);
   const DF d;
-  // Per lane: the node's (i, j, k) as table indices (padding lanes: node 0, summed but never
-  // written).
-  alignas(64) std::int32_t ti[NV * kLanes], tj[NV * kLanes], tk[NV * kLanes];
-  for (int n = 0; n < NV * static_cast<int>(kLanes); ++n) {
-    const int m = n < kNodes ? n : 0;
-    ti[n] = m / (N * N), tj[n] = (m / N) % N, tk[n] = m % N;
-  }
-  // The window's slide along z (below): lane n takes lane n + 1's sums, except the lanes of
-  // the new plane k = N - 1 (and padding), which start at zero.
-  alignas(64) std::int32_t keep_bits[NV * kLanes], rotate[kLanes];
-  for (int n = 0; n < NV * static_cast<int>(kLanes); ++n)
-    keep_bits[n] = n < kNodes && n % N != N - 1 ? -1 : 0;
-  for (std::size_t t = 0; t < kLanes; ++t) rotate[t] = static_cast<std::int32_t>((t + 1) % kLanes);
   const DI di;
+  // Per lane: the node's (i, j, k) as table indices (padding lanes: 0, summed but never
+  // written); the lane of each node; and the lanes kept when the window slides along z
+  // (below), where lane n takes lane n + 1's sums except in the new plane k = N - 1 and
+  // padding, which start at zero.
+  alignas(64) std::int32_t ti[kSlots], tj[kSlots], tk[kSlots], keep_bits[kSlots];
+  alignas(64) std::int32_t rotate[kLanes];
+  int lane_of[kNodes];
+  for (int n = 0; n < kSlots; ++n) {
+    const int r = n % static_cast<int>(kLanes);
+    const bool valid = kPlanes ? r < N * N : n < kNodes;
+    const int i = kPlanes ? n / static_cast<int>(kLanes) : n / (N * N);
+    const int jk = valid ? (kPlanes ? r : n % (N * N)) : 0;
+    ti[n] = valid ? i : 0, tj[n] = jk / N, tk[n] = jk % N;
+    keep_bits[n] = valid && jk % N != N - 1 ? -1 : 0;
+    if (valid) lane_of[i * N * N + jk] = n;
+  }
+  for (std::size_t t = 0; t < kLanes; ++t) rotate[t] = static_cast<std::int32_t>((t + 1) % kLanes);
   const auto rot = hn::SetTableIndices(d, rotate);
   const auto last_lane = hn::RebindMask(
       d, hn::Eq(hn::Iota(di, 0), hn::Set(di, static_cast<std::int32_t>(kLanes - 1))));
   hn::Mask<DF> keep[NV];
   for (int v = 0; v < NV; ++v)
     keep[v] = hn::RebindMask(d, hn::Ne(hn::Load(di, keep_bits + v * kLanes), hn::Zero(di)));
-  alignas(64) float out[4][NV * kLanes];
   const bool fl = g.float_nodes;
-  // Adds the sums of lanes `lanes` (node n at storage index nodes[c] for the c-th) to the grid.
   VF acc[4][NV];  // mass, momentum x, y, z per node, summed over the window's cells
-  const auto add_nodes = [&](const std::size_t* nodes, int count, int stride) {
+  alignas(64) float out[4][kSlots];
+  const auto spill = [&] {
     for (int a = 0; a < 4; ++a)
       for (int v = 0; v < NV; ++v) hn::Store(acc[a][v], d, out[a] + v * kLanes);
+  };
+  // Adds the window's sums of stencil nodes node[c] (numbered (i N + j) N + k) to the grid,
+  // at storage indices at[c], from `out` (where spill stores the sums).
+  const auto add_nodes = [&fl, &g, &lane_of, &out](const std::size_t* at, const int* node,
+                                                     int count) {
     for (int c = 0; c < count; ++c) {
-      const std::size_t x = nodes[c];
-      const int n = c * stride;
+      const std::size_t x = at[c];
+      const int n = lane_of[node[c]];
       g.mass[x] = store_node(g.mass[x] + out[0][n], fl);
       for (int e = 0; e < 3; ++e)
         g.velocity[x][e] = store_node(g.velocity[x][e] + out[1 + e][n], fl);
     }
+  };
+  int all_nodes[kNodes], plane_nodes[N * N];
+  for (int n = 0; n < kNodes; ++n) all_nodes[n] = n;
+  for (int c = 0; c < N * N; ++c) plane_nodes[c] = c * N;  // (i, j, 0), c = i N + j
+  const auto flush_all = [&](const Vec3i& base) {
+    spill();
+    std::size_t at[kNodes];
+    g.stencil_indices<N>(base, at);
+    add_nodes(at, all_nodes, kNodes);
   };
   StressBatch sb;
   ScatterBatch<N> pb;
@@ -446,61 +471,74 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
     if (q >= pb.b1) fill_batch<K, T>(p, ord, fold, g, dt, q, end, sb, pb);
     const Vec3i next(pb.base[0][q - pb.b0], pb.base[1][q - pb.b0], pb.base[2][q - pb.b0]);
     if (open && next == base + Vec3i(0, 0, 1)) {
-      std::size_t plane[N * N];
+      spill();
+      std::size_t at[N * N];
       for (int i = 0; i < N; ++i)
         for (int j = 0; j < N; ++j)
-          plane[N * i + j] = g.node_index(base.x() + i, base.y() + j, base.z());
-      add_nodes(plane, N * N, N);
+          at[N * i + j] = g.node_index(base.x() + i, base.y() + j, base.z());
+      add_nodes(at, plane_nodes, N * N);
       for (auto& a : acc) {
         VF r[NV];
         for (int v = 0; v < NV; ++v) r[v] = hn::TableLookupLanes(a[v], rot);
-        for (int v = 0; v < NV; ++v)
-          a[v] = hn::IfThenElseZero(keep[v], v + 1 < NV ? hn::IfThenElse(last_lane, r[v + 1], r[v])
-                                                        : r[v]);
+        for (int v = 0; v < NV; ++v)  // node layout: lane kLanes - 1 takes the next vector's 0
+          a[v] = hn::IfThenElseZero(
+              keep[v], !kPlanes && v + 1 < NV ? hn::IfThenElse(last_lane, r[v + 1], r[v]) : r[v]);
       }
     } else {
-      if (open) {
-        std::size_t nodes[kNodes];
-        g.stencil_indices<N>(base, nodes);
-        add_nodes(nodes, kNodes, 1);
-      }
+      if (open) flush_all(base);
       for (auto& a : acc)
         for (VF& v : a) v = hn::Zero(d);
     }
     base = next;
     open = true;
-    for (; q < end && ord.keys[ord.order[q]] == cell; ++q) {
+    const std::size_t cell_end = std::min<std::size_t>(end, ord.counts[cell + 1]);
+    for (; q < cell_end; ++q) {
       if (q >= pb.b1) fill_batch<K, T>(p, ord, fold, g, dt, q, end, sb, pb);
       const std::size_t l = q - pb.b0;
-      // Lanes 0 to N - 1 hold the particle's weights and tables (the rest, its neighbours',
-      // are never looked up).
-      VF W[3], X[3][3];
-      for (int b = 0; b < 3; ++b) {
-        W[b] = hn::LoadU(d, pb.w[b] + N * l);
-        for (int e = 0; e < 3; ++e) X[b][e] = hn::LoadU(d, pb.t[b][e] + N * l);
-      }
-      const VF mv = hn::Set(d, pb.m[l]);
-      for (int v = 0; v < NV; ++v) {
-        const auto Ii = hn::SetTableIndices(d, ti + v * kLanes);
-        const auto Ij = hn::SetTableIndices(d, tj + v * kLanes);
-        const auto Ik = hn::SetTableIndices(d, tk + v * kLanes);
-        const VF wx = hn::TableLookupLanes(W[0], Ii), wy = hn::TableLookupLanes(W[1], Ij),
-                 wz = hn::TableLookupLanes(W[2], Ik);
-        const VF wyz = hn::Mul(wy, wz), wxz = hn::Mul(wx, wz), wxy = hn::Mul(wx, wy);
-        acc[0][v] = hn::MulAdd(mv, hn::Mul(wx, wyz), acc[0][v]);
-        for (int e = 0; e < 3; ++e) {
-          VF sum = hn::MulAdd(hn::TableLookupLanes(X[0][e], Ii), wyz, acc[1 + e][v]);
-          sum = hn::MulAdd(hn::TableLookupLanes(X[1][e], Ij), wxz, sum);
-          acc[1 + e][v] = hn::MulAdd(hn::TableLookupLanes(X[2][e], Ik), wxy, sum);
+      // Lanes 0 to N - 1 of a row hold the particle's weights and tables (the rest, its
+      // neighbours', are never looked up).
+      const auto row = [&](const float* r) { return hn::LoadU(d, r + N * l); };
+      if constexpr (kPlanes) {
+        const auto Ij = hn::SetTableIndices(d, tj), Ik = hn::SetTableIndices(d, tk);
+        const VF wy = hn::TableLookupLanes(row(pb.w[1]), Ij);
+        const VF wz = hn::TableLookupLanes(row(pb.w[2]), Ik);
+        const VF A = hn::Mul(wy, wz), mA = hn::Mul(hn::Set(d, pb.m[l]), A);
+        VF B[3];
+        for (int e = 0; e < 3; ++e)
+          B[e] = hn::MulAdd(hn::TableLookupLanes(row(pb.t[1][e]), Ij), wz,
+                            hn::Mul(wy, hn::TableLookupLanes(row(pb.t[2][e]), Ik)));
+        for (int i = 0; i < N; ++i) {
+          const VF wx = hn::Set(d, pb.w[0][N * l + i]);
+          acc[0][i] = hn::MulAdd(wx, mA, acc[0][i]);
+          for (int e = 0; e < 3; ++e)
+            acc[1 + e][i] = hn::MulAdd(hn::Set(d, pb.t[0][e][N * l + i]), A,
+                                       hn::MulAdd(wx, B[e], acc[1 + e][i]));
+        }
+      } else {
+        VF W[3], X[3][3];
+        for (int b = 0; b < 3; ++b) {
+          W[b] = row(pb.w[b]);
+          for (int e = 0; e < 3; ++e) X[b][e] = row(pb.t[b][e]);
+        }
+        const VF mv = hn::Set(d, pb.m[l]);
+        for (int v = 0; v < NV; ++v) {
+          const auto Ii = hn::SetTableIndices(d, ti + v * kLanes);
+          const auto Ij = hn::SetTableIndices(d, tj + v * kLanes);
+          const auto Ik = hn::SetTableIndices(d, tk + v * kLanes);
+          const VF wx = hn::TableLookupLanes(W[0], Ii), wy = hn::TableLookupLanes(W[1], Ij),
+                   wz = hn::TableLookupLanes(W[2], Ik);
+          const VF wyz = hn::Mul(wy, wz), wxz = hn::Mul(wx, wz), wxy = hn::Mul(wx, wy);
+          acc[0][v] = hn::MulAdd(mv, hn::Mul(wx, wyz), acc[0][v]);
+          for (int e = 0; e < 3; ++e) {
+            VF sum = hn::MulAdd(hn::TableLookupLanes(X[0][e], Ii), wyz, acc[1 + e][v]);
+            sum = hn::MulAdd(hn::TableLookupLanes(X[1][e], Ij), wxz, sum);
+            acc[1 + e][v] = hn::MulAdd(hn::TableLookupLanes(X[2][e], Ik), wxy, sum);
+          }
         }
       }
     }
   }
-  if (open) {
-    std::size_t nodes[kNodes];
-    g.stencil_indices<N>(base, nodes);
-    add_nodes(nodes, kNodes, 1);
-  }
+  if (open) flush_all(base);
 }
 
 template <Kernel K, Transfer T>
@@ -915,6 +953,14 @@ void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particl
 const char* target_name() {
   static const char* const name = HWY_DYNAMIC_DISPATCH(TargetImpl)();
   return name;
+}
+
+void for_each_target(const std::function<void(const char*)>& f) {
+  for (const std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    hwy::SetSupportedTargetsForTest(target);
+    if (HWY_DYNAMIC_DISPATCH(TargetImpl)()) f(hwy::TargetName(target));
+  }
+  hwy::SetSupportedTargetsForTest(0);
 }
 
 }  // namespace mpm::simd

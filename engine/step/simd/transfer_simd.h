@@ -6,6 +6,7 @@
 /// thread count on one machine (every sum runs in the same order; a particle's lane does not
 /// depend on its neighbours).
 
+#include <functional>
 #include <span>
 
 #include "engine/core/particles.h"
@@ -41,5 +42,10 @@ void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particl
 /// Name of the instruction set the dispatch chose on this machine, e.g. "AVX3", or nullptr
 /// if it has none the SIMD path can use (then the scalar path runs).
 const char* target_name();
+
+/// Calls f(name) once per instruction set compiled in that this CPU runs and the SIMD path
+/// can use, with the dispatch forced to it (Highway's test hook), then restores the normal
+/// choice: so tests on an AVX-512 machine also run the AVX2 and SSE4 code.
+void for_each_target(const std::function<void(const char*)>& f);
 
 }  // namespace mpm::simd
