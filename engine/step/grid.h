@@ -62,7 +62,7 @@ struct Grid {
         blk[a][t] = ((base[a] + t) >> kBlockBits) - b0[a];
         off[a][t] = (base[a] + t) & m;
       }
-    std::size_t first[2][2][2];
+    std::size_t first[2][2][2] = {};  // blocks the stencil does not reach stay 0, unused
     for (int di = 0; di <= blk[0][N - 1]; ++di)
       for (int dj = 0; dj <= blk[1][N - 1]; ++dj)
         for (int dk = 0; dk <= blk[2][N - 1]; ++dk) {
@@ -70,12 +70,15 @@ struct Grid {
           assert(s >= 0 && "the sort activates every block a stencil touches");
           first[di][dj][dk] = static_cast<std::size_t>(s) * kBlockNodes;
         }
+    // Each (i, j) row's start in its two z blocks, then one add per node.
     int c = 0;
     for (int i = 0; i < N; ++i)
-      for (int j = 0; j < N; ++j)
-        for (int k = 0; k < N; ++k)
-          out[c++] = first[blk[0][i]][blk[1][j]][blk[2][k]] +
-                     ((off[0][i] << (2 * kBlockBits)) | (off[1][j] << kBlockBits) | off[2][k]);
+      for (int j = 0; j < N; ++j) {
+        const std::size_t xy = (off[0][i] << (2 * kBlockBits)) | (off[1][j] << kBlockBits);
+        const std::size_t row[2] = {first[blk[0][i]][blk[1][j]][0] + xy,
+                                    first[blk[0][i]][blk[1][j]][1] + xy};
+        for (int k = 0; k < N; ++k) out[c++] = row[blk[2][k]] + off[2][k];
+      }
   }
   /// Storage index of node (i, j, k), whose block must be active.
   std::size_t node_index(int i, int j, int k) const {

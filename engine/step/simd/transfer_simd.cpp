@@ -273,13 +273,8 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
   constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
   const DF d;
   // The next batch's particles, requested now so that their loads below (one batch later) do
-  // not wait for memory: the scatter's order only roughly follows memory order. Not when this
-  // batch and the next look like one run of memory (ends 2 kLanes - 1 apart), which the
-  // hardware prefetcher follows.
-  const std::size_t ahead = std::min(end, b0 + 2 * kLanes);
-  const bool in_memory_order =
-      ahead == b0 + 2 * kLanes && ord.order[ahead - 1] == ord.order[b0] + 2 * kLanes - 1;
-  for (std::size_t q = b0 + kLanes; q < ahead && !in_memory_order; ++q) {
+  // not wait for memory: the scatter's order only roughly follows memory order.
+  for (std::size_t q = b0 + kLanes; q < std::min(end, b0 + 2 * kLanes); ++q) {
     const std::uint32_t pi = ord.order[q];
     hwy::Prefetch(&p.x[pi]);
     hwy::Prefetch(&p.v[pi]);
