@@ -85,6 +85,31 @@ void absolute_sums(const Particles& p, Transfer tr, Real dt, const Grid& g, std:
   }
 }
 
+/// Puts p in the order `ord` sorted it into, as the reorder stage does (ids numbered first).
+void reorder_as(ParticleOrder& ord, Particles& p) {
+  p.id.resize(p.size());
+  std::iota(p.id.begin(), p.id.end(), 0u);
+  const ReorderRange all{0, p.size(), {}};
+  reorder_particles({&all, 1}, false, ord, p);
+}
+
+/// Calls f(cell_order, kernel, transfer) on every instruction set this CPU runs, for particles
+/// in memory order and in cell order, and every kernel and transfer the SIMD path takes (MLS
+/// needs a kernel wider than linear).
+template <class F>
+void for_each_case(F&& f) {
+  simd::for_each_target([&](const char* target) {
+    for (bool cell_order : {false, true})
+      for (Kernel kernel : {Kernel::linear, Kernel::quadratic, Kernel::cubic})
+        for (Transfer tr : {Transfer::apic, Transfer::pic, Transfer::mls}) {
+          if (tr == Transfer::mls && kernel == Kernel::linear) continue;
+          INFO("target " << target << " kernel " << static_cast<int>(kernel) << " transfer "
+                         << static_cast<int>(tr) << " cell order " << cell_order);
+          f(cell_order, kernel, tr);
+        }
+  });
+}
+
 }  // namespace
 
 TEST_CASE("SIMD and scalar particle-to-grid give the same grid to float rounding",
@@ -97,51 +122,41 @@ TEST_CASE("SIMD and scalar particle-to-grid give the same grid to float rounding
   // Every instruction set (AVX-512 scatters by planes of the stencil, narrower ones by nodes),
   // with particles in memory order as sampled and in cell order as the reorder leaves them
   // (batches of consecutive particles of one object: mass and model set once per batch).
-  simd::for_each_target([&](const char* target) {
-    for (bool cell_order : {false, true})
-      for (Kernel kernel : {Kernel::linear, Kernel::quadratic, Kernel::cubic})
-        for (Transfer tr : {Transfer::apic, Transfer::pic, Transfer::mls}) {
-          if (tr == Transfer::mls && kernel == Kernel::linear) continue;
-          INFO("target " << target << " kernel " << static_cast<int>(kernel) << " transfer "
-                         << static_cast<int>(tr) << " cell order " << cell_order);
-          Particles p = cloud(7);
-          Grid a(grid16(), false), b(grid16(), false);
-          ParticleOrder ord;
-          if (cell_order) {
-            sort_particles(p, kernel, a, ord);
-            p.id.resize(p.size());
-            std::iota(p.id.begin(), p.id.end(), 0u);
-            const ReorderRange all{0, p.size(), {}};
-            reorder_particles({&all, 1}, false, ord, p);
-          }
-          sort_particles(p, kernel, a, ord);
-          sort_particles(p, kernel, b, ord);
-          particles_to_grid(p, ord, tr, kernel, dt, a, TransferPath::scalar);
-          particles_to_grid(p, ord, tr, kernel, dt, b, TransferPath::simd);
-          std::vector<double> am;
-          std::vector<Vec3> av;
-          dispatch_kernel(kernel, [&]<Kernel K>() { absolute_sums<K>(p, tr, dt, a, am, av); });
-          // Bound: each term is a product of at most 3 float-rounded weights with a
-          // float-rounded factor and up to 7 chained FMAs (at most 12 roundings: 12 u of the
-          // term), and a node's terms from a run of cells along z are summed in float before
-          // the grid adds them (the window of particles_to_grid: a node lies in the stencils of
-          // N cells of a run, n_cell <= 40 particles each here with 3000 particles over about
-          // 260 cells: at most 3 * 40 = 120 more roundings of the partial sum for the
-          // quadratic kernel, 160 for the cubic). Double rounding of the scalar reference is
-          // negligible. So |simd - scalar| <= (12 + 40 N) u sum |terms| per node.
-          const double bound = (12 + 40 * kernel_nodes(kernel)) * kU;
-          std::size_t bad = 0;
-          double worst = 0;
-          for (std::size_t n = 0; n < a.mass.size(); ++n) {
-            worst = std::max(worst, std::abs(a.mass[n] - b.mass[n]) / (am[n] + 1e-300));
-            bad += std::abs(a.mass[n] - b.mass[n]) > bound * am[n];
-            for (int e = 0; e < 3; ++e)
-              bad += std::abs(a.velocity[n][e] - b.velocity[n][e]) > bound * av[n][e];
-          }
-          INFO("worst mass error / sum |terms| " << worst / kU << " u");
-          CHECK(bad == 0);
-          CHECK(worst > 0);  // the paths really differ: the SIMD one ran
-        }
+  for_each_case([&](bool cell_order, Kernel kernel, Transfer tr) {
+    Particles p = cloud(7);
+    Grid a(grid16(), false), b(grid16(), false);
+    ParticleOrder ord;
+    if (cell_order) {
+      sort_particles(p, kernel, a, ord);
+      reorder_as(ord, p);
+    }
+    sort_particles(p, kernel, a, ord);
+    sort_particles(p, kernel, b, ord);
+    particles_to_grid(p, ord, tr, kernel, dt, a, TransferPath::scalar);
+    particles_to_grid(p, ord, tr, kernel, dt, b, TransferPath::simd);
+    std::vector<double> am;
+    std::vector<Vec3> av;
+    dispatch_kernel(kernel, [&]<Kernel K>() { absolute_sums<K>(p, tr, dt, a, am, av); });
+    // Bound: each term is a product of at most 3 float-rounded weights with a
+    // float-rounded factor and up to 7 chained FMAs (at most 12 roundings: 12 u of the
+    // term), and a node's terms from a run of cells along z are summed in float before
+    // the grid adds them (the window of particles_to_grid: a node lies in the stencils of
+    // N cells of a run, n_cell <= 40 particles each here with 3000 particles over about
+    // 260 cells: at most 3 * 40 = 120 more roundings of the partial sum for the
+    // quadratic kernel, 160 for the cubic). Double rounding of the scalar reference is
+    // negligible. So |simd - scalar| <= (12 + 40 N) u sum |terms| per node.
+    const double bound = (12 + 40 * kernel_nodes(kernel)) * kU;
+    std::size_t bad = 0;
+    double worst = 0;
+    for (std::size_t n = 0; n < a.mass.size(); ++n) {
+      worst = std::max(worst, std::abs(a.mass[n] - b.mass[n]) / (am[n] + 1e-300));
+      bad += std::abs(a.mass[n] - b.mass[n]) > bound * am[n];
+      for (int e = 0; e < 3; ++e)
+        bad += std::abs(a.velocity[n][e] - b.velocity[n][e]) > bound * av[n][e];
+    }
+    INFO("worst mass error / sum |terms| " << worst / kU << " u");
+    CHECK(bad == 0);
+    CHECK(worst > 0);  // the paths really differ: the SIMD one ran
   });
 }
 
@@ -155,53 +170,43 @@ TEST_CASE("SIMD and scalar grid-to-particle give the same v, C and F to float ro
   // In memory order as sampled (a batch's 16 lanes in as many cells: the lanes gather), and
   // in cell order as the reorder stage leaves it (about 11 particles per cell here: a batch
   // spans two or three cells, whose node velocities are loaded once per cell).
-  simd::for_each_target([&](const char* target) {
-    for (bool cell_order : {false, true})
-      for (Kernel kernel : {Kernel::linear, Kernel::quadratic, Kernel::cubic})
-        for (Transfer tr : {Transfer::apic, Transfer::pic, Transfer::mls}) {
-          if (tr == Transfer::mls && kernel == Kernel::linear) continue;
-          INFO("target " << target << " kernel " << static_cast<int>(kernel) << " transfer "
-                         << static_cast<int>(tr) << " cell order " << cell_order);
-          Particles a = cloud(8);
-          Grid g(grid16(), false);
-          ParticleOrder ord;
-          sort_particles(a, kernel, g, ord);
-          particles_to_grid(a, ord, tr, kernel, dt, g, TransferPath::scalar);
-          grid_update(g);
-          if (cell_order) {
-            a.id.resize(a.size());
-            std::iota(a.id.begin(), a.id.end(), 0u);
-            const ReorderRange all{0, a.size(), {}};
-            reorder_particles({&all, 1}, false, ord, a);
-          }
-          Particles b = a;
-          grid_to_particles(g, tr, kernel, 0, dt, a, TransferPath::scalar);
-          grid_to_particles(g, tr, kernel, 0, dt, b, TransferPath::simd);
-          double vmax = 0;
-          for (const Vec3& v : g.velocity) vmax = std::max(vmax, v.cwiseAbs().maxCoeff());
-          // v = sum_i w_i v_i with weights summing to 1: node velocities rounded to float (u / 2),
-          // weights rounded (u), products of three (2 u), a chain of 2 N + 2 <= 10 FMAs: at most
-          // 16 u of sum w |v_i| <= vmax. C = B D^-1 multiplies by |corner| + N h <= (N + 1) h and
-          // 1/D = 4 / h^2 (linear: C = grad v, |grad w| <= 2 / h per axis, 3 axes): at most
-          // 16 u vmax (N + 1) 4 / h. F = F + dt G F is rounded to float by both paths (1 ulp of
-          // |F| <= 1.6: 2 u |F| apart at most) plus dt 3 |dG| |F|.
-          const double h = g.h.x(), N = kernel_nodes(kernel);
-          const double dv = 16 * kU * vmax, dC = 16 * kU * vmax * (N + 1) * 4 / h;
-          std::size_t bad = 0;
-          double seen = 0;
-          for (std::size_t q = 0; q < a.size(); ++q) {
-            seen = std::max(seen, (a.v[q] - b.v[q]).cwiseAbs().maxCoeff());
-            bad += (a.v[q] - b.v[q]).cwiseAbs().maxCoeff() > dv;
-            if (tr != Transfer::pic)
-              bad += (to_real(a.C[q]) - to_real(b.C[q])).cwiseAbs().maxCoeff() > dC;
-            const double fmax = to_real(a.F[q]).cwiseAbs().maxCoeff();
-            bad += (to_real(a.F[q]) - to_real(b.F[q])).cwiseAbs().maxCoeff() >
-                   2 * kU * fmax + dt * 3 * dC * fmax;
-          }
-          INFO("largest velocity difference " << seen << " (bound " << dv << ")");
-          CHECK(bad == 0);
-          CHECK(seen > 0);
-        }
+  for_each_case([&](bool cell_order, Kernel kernel, Transfer tr) {
+    Particles a = cloud(8);
+    Grid g(grid16(), false);
+    ParticleOrder ord;
+    sort_particles(a, kernel, g, ord);
+    particles_to_grid(a, ord, tr, kernel, dt, g, TransferPath::scalar);
+    grid_update(g);
+    if (cell_order) {
+      reorder_as(ord, a);
+    }
+    Particles b = a;
+    grid_to_particles(g, tr, kernel, 0, dt, a, TransferPath::scalar);
+    grid_to_particles(g, tr, kernel, 0, dt, b, TransferPath::simd);
+    double vmax = 0;
+    for (const Vec3& v : g.velocity) vmax = std::max(vmax, v.cwiseAbs().maxCoeff());
+    // v = sum_i w_i v_i with weights summing to 1: node velocities rounded to float (u / 2),
+    // weights rounded (u), products of three (2 u), a chain of 2 N + 2 <= 10 FMAs: at most
+    // 16 u of sum w |v_i| <= vmax. C = B D^-1 multiplies by |corner| + N h <= (N + 1) h and
+    // 1/D = 4 / h^2 (linear: C = grad v, |grad w| <= 2 / h per axis, 3 axes): at most
+    // 16 u vmax (N + 1) 4 / h. F = F + dt G F is rounded to float by both paths (1 ulp of
+    // |F| <= 1.6: 2 u |F| apart at most) plus dt 3 |dG| |F|.
+    const double h = g.h.x(), N = kernel_nodes(kernel);
+    const double dv = 16 * kU * vmax, dC = 16 * kU * vmax * (N + 1) * 4 / h;
+    std::size_t bad = 0;
+    double seen = 0;
+    for (std::size_t q = 0; q < a.size(); ++q) {
+      seen = std::max(seen, (a.v[q] - b.v[q]).cwiseAbs().maxCoeff());
+      bad += (a.v[q] - b.v[q]).cwiseAbs().maxCoeff() > dv;
+      if (tr != Transfer::pic)
+        bad += (to_real(a.C[q]) - to_real(b.C[q])).cwiseAbs().maxCoeff() > dC;
+      const double fmax = to_real(a.F[q]).cwiseAbs().maxCoeff();
+      bad += (to_real(a.F[q]) - to_real(b.F[q])).cwiseAbs().maxCoeff() >
+             2 * kU * fmax + dt * 3 * dC * fmax;
+    }
+    INFO("largest velocity difference " << seen << " (bound " << dv << ")");
+    CHECK(bad == 0);
+    CHECK(seen > 0);
   });
 }
 
@@ -302,10 +307,7 @@ TEST_CASE(
           Grid g(grid16(), false);
           ParticleOrder ord;
           sort_particles(p, Kernel::quadratic, g, ord);
-          p.id.resize(p.size());
-          std::iota(p.id.begin(), p.id.end(), 0u);
-          const ReorderRange all{0, p.size(), {}};
-          reorder_particles({&all, 1}, false, ord, p);
+          reorder_as(ord, p);
         } else {
           for (std::size_t q = 0; q < p.size(); q += 3) p.object[q] = 1;
         }
