@@ -45,6 +45,10 @@ struct Grid {
 
   /// A grid for `desc`; `flip` keeps velocity_old and force, which only FLIP uses.
   Grid(const GridDesc& desc, bool flip);
+  /// Offset inside its block of the node at (i, j, k) within the block (each below 4).
+  static constexpr int block_offset(int i, int j, int k) {
+    return (i << (2 * kBlockBits)) | (j << kBlockBits) | k;
+  }
   /// Page-table entry of block (bi, bj, bk).
   std::size_t page(int bi, int bj, int bk) const {
     return (static_cast<std::size_t>(bi) * blocks.y() + bj) * blocks.z() + bk;
@@ -74,7 +78,7 @@ struct Grid {
     int c = 0;
     for (int i = 0; i < N; ++i)
       for (int j = 0; j < N; ++j) {
-        const std::size_t xy = (off[0][i] << (2 * kBlockBits)) | (off[1][j] << kBlockBits);
+        const std::size_t xy = block_offset(off[0][i], off[1][j], 0);
         const std::size_t row[2] = {first[blk[0][i]][blk[1][j]][0] + xy,
                                     first[blk[0][i]][blk[1][j]][1] + xy};
         for (int k = 0; k < N; ++k) out[c++] = row[blk[2][k]] + off[2][k];
@@ -85,8 +89,7 @@ struct Grid {
     const std::int32_t s = slot[page(i >> kBlockBits, j >> kBlockBits, k >> kBlockBits)];
     assert(s >= 0 && "the sort activates every block a stencil touches");
     constexpr int m = kBlockEdge - 1;
-    return static_cast<std::size_t>(s) * kBlockNodes +
-           (((i & m) << (2 * kBlockBits)) | ((j & m) << kBlockBits) | (k & m));
+    return static_cast<std::size_t>(s) * kBlockNodes + block_offset(i & m, j & m, k & m);
   }
   /// World position of node (i, j, k), m.
   Vec3 position(int i, int j, int k) const {

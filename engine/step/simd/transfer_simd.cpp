@@ -431,26 +431,22 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
     for (int a = 0; a < 4; ++a)
       for (int v = 0; v < NV; ++v) hn::Store(acc[a][v], d, out[a] + v * kLanes);
   };
-  // Adds the window's sums of stencil nodes node[c] (numbered (i N + j) N + k) to the grid,
-  // at storage indices at[c], from `out` (where spill stores the sums).
-  const auto add_nodes = [&fl, &g, &lane_of, &out](const std::size_t* at, const int* node,
-                                                     int count) {
+  // Adds the window's sums of stencil nodes c * stride (numbered (i N + j) N + k), c < count,
+  // to the grid at storage indices at[c], from `out` (where spill stores the sums).
+  const auto add_nodes = [&fl, &g, &lane_of, &out](const std::size_t* at, int count, int stride) {
     for (int c = 0; c < count; ++c) {
       const std::size_t x = at[c];
-      const int n = lane_of[node[c]];
+      const int n = lane_of[c * stride];
       g.mass[x] = store_node(g.mass[x] + out[0][n], fl);
       for (int e = 0; e < 3; ++e)
         g.velocity[x][e] = store_node(g.velocity[x][e] + out[1 + e][n], fl);
     }
   };
-  int all_nodes[kNodes], plane_nodes[N * N];
-  for (int n = 0; n < kNodes; ++n) all_nodes[n] = n;
-  for (int c = 0; c < N * N; ++c) plane_nodes[c] = c * N;  // (i, j, 0), c = i N + j
   const auto flush_all = [&](const Vec3i& base) {
     spill();
     std::size_t at[kNodes];
     g.stencil_indices<N>(base, at);
-    add_nodes(at, all_nodes, kNodes);
+    add_nodes(at, kNodes, 1);
   };
   StressBatch sb;
   ScatterBatch<N> pb;
@@ -471,7 +467,7 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
       for (int i = 0; i < N; ++i)
         for (int j = 0; j < N; ++j)
           at[N * i + j] = g.node_index(base.x() + i, base.y() + j, base.z());
-      add_nodes(at, plane_nodes, N * N);
+      add_nodes(at, N * N, N);  // nodes (i, j, 0): c = i N + j
       for (auto& a : acc) {
         VF r[NV];
         for (int v = 0; v < NV; ++v) r[v] = hn::TableLookupLanes(a[v], rot);
@@ -951,11 +947,13 @@ const char* target_name() {
 }
 
 void for_each_target(const std::function<void(const char*)>& f) {
+  struct Restore {  // the normal dispatch again, also when f throws
+    ~Restore() { hwy::SetSupportedTargetsForTest(0); }
+  } restore;
   for (const std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
     hwy::SetSupportedTargetsForTest(target);
     if (HWY_DYNAMIC_DISPATCH(TargetImpl)()) f(hwy::TargetName(target));
   }
-  hwy::SetSupportedTargetsForTest(0);
 }
 
 }  // namespace mpm::simd
