@@ -2,8 +2,10 @@
 """Fragments of a run's frame and the plastic Jp of its snow, as tests/physics/fragments.h counts
 them: particles binned into cubic cells of edge CELL (m), face-sharing occupied cells joined.
 
-Usage: /usr/bin/python3 scripts/snow_fragments.py RUN_DIR FRAME CELL
-FRAME is a frame number, several joined by commas, or "all".
+Usage: /usr/bin/python3 scripts/snow_fragments.py RUN_DIR FRAME CELL [--plot OUT.png]
+FRAME is a frame number, several joined by commas, or "all". --plot draws the last FRAME's
+particles seen from above (x, z) and from the side (x, y), the four largest fragments in
+colour and the rest (dust, specks) in grey.
 Prints, per frame, the fragment count, the largest fragment's share and the largest sizes,
 whether it meets the shatter criterion (docs/validation.md, section 17), and for each of the
 three largest fragments its share, bounding box and mean velocity (a heap of dust against a
@@ -20,6 +22,7 @@ import numpy as np
 from scipy import ndimage
 
 run, frames, cell = sys.argv[1], sys.argv[2], float(sys.argv[3])
+plot = sys.argv[sys.argv.index("--plot") + 1] if "--plot" in sys.argv else None
 
 
 def labelled(x):
@@ -60,6 +63,34 @@ for frame in numbers:
         lo, hi, mean_v = x[inside].min(axis=0), x[inside].max(axis=0), v[inside].mean(axis=0)
         print(f"  {inside.sum() / len(x):.1%}: box {np.round(lo, 3).tolist()} to "
               f"{np.round(hi, 3).tolist()} m, mean velocity {np.round(mean_v, 2).tolist()} m/s")
+if plot:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    # The last frame's fragments, largest first: colours for the four largest, grey the rest.
+    rank = np.empty(len(by_label), np.int64)
+    rank[np.argsort(by_label[1:])[::-1] + 1] = np.arange(len(by_label) - 1)
+    piece = rank[point_labels]
+    colours = ["#1f4e9c", "#d62728", "#2ca02c", "#ff7f0e"]
+    fig, axes = plt.subplots(2, 1, figsize=(8, 8))
+    for ax, (a, name) in zip(axes, [(2, "z"), (1, "y")]):
+        rest = piece >= len(colours)
+        ax.scatter(x[rest, 0], x[rest, a], s=0.2, c="0.75", lw=0, label="the rest (dust)")
+        for k, colour in enumerate(colours):
+            inside = piece == k
+            if inside.any():
+                ax.scatter(x[inside, 0], x[inside, a], s=0.4, c=colour, lw=0,
+                           label=f"fragment {k + 1}: {inside.mean():.1%}")
+        ax.set_ylabel(f"{name} (m)")
+        ax.set_aspect("equal")
+    axes[0].set_title(f"{os.path.basename(os.path.normpath(run))}, t = {t:.3f} s: "
+                      f"fragments (cells of edge {cell:g} m)")
+    axes[0].legend(loc="upper right", markerscale=12, fontsize=8)
+    for ax in axes:
+        ax.set_xlabel("x (m)")
+    fig.tight_layout()
+    fig.savefig(plot, dpi=110)
+    print(f"plot: {plot}")
 checkpoint = os.path.join(run, "checkpoint.h5")
 if os.path.exists(checkpoint):
     with h5py.File(checkpoint) as f:

@@ -112,7 +112,7 @@ Agreement one_against_two(const std::string& name, const std::string& scene,
 // sums its particles, a difference of double round-off (1e-16 relative) per substep, which
 // float particle storage (F, C) and contact amplify over the frames. The frames store float
 // positions (ulp 6e-8 m at 1 m). Measured over these cases: at most 2e-7 m, 4e-6 of the
-// scene's largest speed (snowball_paper: 4.2e-5 m/s where the snow moves at 10.3 m/s) and
+// scene's largest speed (snowball_paper_wall: 4.2e-5 m/s where the snow moves at 10.3 m/s) and
 // 1.2e-6 in J (docs/distributed.md); the bounds leave 2.5 times that or more for growth.
 constexpr double kPositionBound = 5e-7;          ///< m
 constexpr double kRelativeVelocityBound = 1e-5;  ///< Of the largest speed in the frames.
@@ -175,7 +175,17 @@ TEST_CASE("two ranks: every material, objects that one rank does not hold", "[pa
 TEST_CASE("two ranks: the velocity bound scales with the scene's speed (fast snow)", "[parallel]") {
   // Snow at 10 m/s into a wall, hardened where it compacts: the largest velocity difference
   // of the tested scenes (4.2e-5 m/s), 4e-6 of its speed.
-  check_round_off(one_against_two("snowball_paper", "scenes/snowball_paper.yaml", "", 1));
+  check_round_off(
+      one_against_two("snowball_paper_wall", "scenes/snowball_paper_wall.yaml", "", 1));
+}
+
+TEST_CASE("two ranks: the clumped snowball at a post (mesh wall, hardness from positions)",
+          "[parallel]") {
+  // scenes/snowball_paper.yaml at 8 cells across the ball (2,149 particles): each rank samples
+  // its own particles, whose starting Jp comes from their positions and the seed, and the post
+  // is a mesh wall both ranks' nodes meet. 0.02 s: the impact and the first failure.
+  check_round_off(one_against_two("snowball_paper", "scenes/snowball_paper.yaml",
+                                  "--set \"grid.dims=[80, 40, 40]\"", 1));
 }
 
 TEST_CASE("two ranks write the one-rank HDF5 frame file, ids 0..N-1 in order", "[parallel]") {

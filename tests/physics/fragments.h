@@ -14,11 +14,11 @@
 
 namespace mpm::test {
 
-/// Sizes (particle counts, largest first) of the fragments of the points `x`: the points are
-/// binned into cubic cells of edge `cell`, and two points are in one fragment if a chain of
-/// occupied cells, each sharing a face with the next, joins their cells. With `cell` about the
-/// grid spacing, pieces that no grid node still joins count apart.
-inline std::vector<std::size_t> fragment_sizes(const std::vector<Vec3>& x, Real cell) {
+/// The fragment of each point of `x`, numbered by size (0 the largest; ties in first-point
+/// order): the points are binned into cubic cells of edge `cell`, and two points are in one
+/// fragment if a chain of occupied cells, each sharing a face with the next, joins their cells.
+/// With `cell` about the grid spacing, pieces that no grid node still joins count apart.
+inline std::vector<std::size_t> fragment_labels(const std::vector<Vec3>& x, Real cell) {
   auto key = [](std::int64_t i, std::int64_t j, std::int64_t k) {
     return (i & 0x1FFFFF) | ((j & 0x1FFFFF) << 21) | ((k & 0x1FFFFF) << 42);
   };
@@ -46,11 +46,32 @@ inline std::vector<std::size_t> fragment_sizes(const std::vector<Vec3>& x, Real 
       const auto it = cell_id.find(key(n[0], n[1], n[2]));
       if (it != cell_id.end()) parent[root(a)] = root(it->second);
     }
-  std::unordered_map<std::size_t, std::size_t> count;
-  for (std::size_t p = 0; p < x.size(); ++p) ++count[root(point_cell[p])];
+  // Count the points of each root cell, in first-point order, then number the roots by size.
+  std::unordered_map<std::size_t, std::size_t> root_index;
+  std::vector<std::size_t> count, label(x.size());
+  for (std::size_t p = 0; p < x.size(); ++p) {
+    const auto [it, added] = root_index.try_emplace(root(point_cell[p]), count.size());
+    if (added) count.push_back(0);
+    ++count[it->second];
+    label[p] = it->second;
+  }
+  std::vector<std::size_t> order(count.size()), rank(count.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return count[a] > count[b]; });
+  for (std::size_t r = 0; r < order.size(); ++r) rank[order[r]] = r;
+  for (std::size_t& l : label) l = rank[l];
+  return label;
+}
+
+/// Sizes (point counts, largest first) of the fragments of the points `x`, as
+/// fragment_labels numbers them.
+inline std::vector<std::size_t> fragment_sizes(const std::vector<Vec3>& x, Real cell) {
   std::vector<std::size_t> sizes;
-  for (const auto& [r, n] : count) sizes.push_back(n);
-  std::sort(sizes.rbegin(), sizes.rend());
+  for (const std::size_t l : fragment_labels(x, cell)) {
+    if (l >= sizes.size()) sizes.resize(l + 1, 0);
+    ++sizes[l];
+  }
   return sizes;
 }
 
