@@ -64,15 +64,20 @@ inline std::vector<std::size_t> fragment_labels(const std::vector<Vec3>& x, Real
   return label;
 }
 
-/// Sizes (point counts, largest first) of the fragments of the points `x`, as
-/// fragment_labels numbers them.
-inline std::vector<std::size_t> fragment_sizes(const std::vector<Vec3>& x, Real cell) {
+/// Sizes (point counts, largest first) of the fragments that `labels` (from
+/// fragment_labels) numbers.
+inline std::vector<std::size_t> fragment_sizes(const std::vector<std::size_t>& labels) {
   std::vector<std::size_t> sizes;
-  for (const std::size_t l : fragment_labels(x, cell)) {
+  for (const std::size_t l : labels) {
     if (l >= sizes.size()) sizes.resize(l + 1, 0);
     ++sizes[l];
   }
   return sizes;
+}
+
+/// Sizes (point counts, largest first) of the fragments of the points `x` (fragment_labels).
+inline std::vector<std::size_t> fragment_sizes(const std::vector<Vec3>& x, Real cell) {
+  return fragment_sizes(fragment_labels(x, cell));
 }
 
 /// How many fragments hold at least `min_fraction` of the points.
