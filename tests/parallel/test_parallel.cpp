@@ -175,8 +175,7 @@ TEST_CASE("two ranks: every material, objects that one rank does not hold", "[pa
 TEST_CASE("two ranks: the velocity bound scales with the scene's speed (fast snow)", "[parallel]") {
   // Snow at 10 m/s into a wall, hardened where it compacts: the largest velocity difference
   // of the tested scenes (4.2e-5 m/s), 4e-6 of its speed.
-  check_round_off(
-      one_against_two("snowball_paper_wall", "scenes/snowball_paper_wall.yaml", "", 1));
+  check_round_off(one_against_two("snowball_paper_wall", "scenes/snowball_paper_wall.yaml", "", 1));
 }
 
 TEST_CASE("two ranks: the clumped snowball at a post (mesh wall, hardness from positions)",
