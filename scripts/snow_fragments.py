@@ -52,13 +52,14 @@ for frame in numbers:
         v = f["velocity"][:].astype(np.float64)
         t = float(f.attrs["time"])
     point_labels, by_label = labelled(x)
-    sizes = np.sort(by_label[1:])[::-1]
+    order = np.argsort(by_label[1:])[::-1] + 1  # the fragments' labels, largest first
+    sizes = by_label[order]
     print(f"frame {frame} (t = {t:.4f} s): {len(x)} particles, {len(sizes)} fragments, largest "
           f"{sizes[0] / len(x):.1%}, sizes {sizes[:6].tolist()}")
     # The shatter criterion of docs/validation.md section 17 (test::shattered).
     shattered = sizes[0] < 0.6 * len(x) and (sizes >= 0.02 * len(x)).sum() >= 3
     print(f"shatters (largest < 60%, >= 3 fragments of >= 2%): {'yes' if shattered else 'no'}")
-    for label in (np.argsort(by_label[1:])[::-1] + 1)[:3]:
+    for label in order[:3]:
         inside = point_labels == label
         lo, hi, mean_v = x[inside].min(axis=0), x[inside].max(axis=0), v[inside].mean(axis=0)
         print(f"  {inside.sum() / len(x):.1%}: box {np.round(lo, 3).tolist()} to "
@@ -69,7 +70,7 @@ if plot:
     import matplotlib.pyplot as plt
     # The last frame's fragments, largest first: colours for the four largest, grey the rest.
     rank = np.empty(len(by_label), np.int64)
-    rank[np.argsort(by_label[1:])[::-1] + 1] = np.arange(len(by_label) - 1)
+    rank[order] = np.arange(len(order))
     piece = rank[point_labels]
     colours = ["#1f4e9c", "#d62728", "#2ca02c", "#ff7f0e"]
     fig, axes = plt.subplots(2, 1, figsize=(8, 8))
