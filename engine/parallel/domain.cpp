@@ -5,10 +5,12 @@
 #include <cstring>
 #include <limits>
 #include <string>
+#include <unordered_map>
 
 #include "engine/core/error.h"
 #include "engine/parallel/comm.h"
 #include "engine/parallel/particle_fields.h"
+#include "engine/step/contact.h"
 #include "engine/step/grid.h"
 #include "engine/step/kernels.h"
 #include "engine/step/simulation.h"
@@ -177,6 +179,7 @@ void Domain::return_ghost_velocities(Grid& g) {
   std::vector<char> send;
   for (std::size_t s : recv_slots_)
     for (std::size_t i = s * B; i < (s + 1) * B; ++i) {
+      put(send, g.mass[i]);
       put(send, g.velocity[i]);
       if (g.flip) put(send, g.velocity_old[i]);
     }
@@ -185,9 +188,116 @@ void Domain::return_ghost_velocities(Grid& g) {
   std::size_t pos = 0;
   for (std::size_t s : send_slots_)
     for (std::size_t i = s * B; i < (s + 1) * B; ++i) {
+      g.mass[i] = take<Real>(recv, pos);
       g.velocity[i] = take<Vec3>(recv, pos);
       if (g.flip) g.velocity_old[i] = take<Vec3>(recv, pos);
     }
+}
+
+Real Domain::solve_contact(const ContactSettings& settings, Real dt, ContactState& local, Grid& g) {
+  const int me = rank(), n = ranks();
+  // Every rank's contacts and the nodes they reach, to rank 0.
+  std::vector<std::vector<char>> out(n);
+  std::vector<char>& buf = out[0];
+  const int S = local.stencil;
+  put(buf, local.size());
+  put(buf, S);
+  put(buf, local.node_velocity.size());
+  for (std::size_t c = 0; c < local.size(); ++c) {
+    put(buf, local.normal[c]);
+    put(buf, local.wall_velocity[c]);
+    put(buf, local.gap[c]);
+    put(buf, local.boundary[c]);
+    put(buf, local.friction[c]);
+    put(buf, local.patch[c]);
+    for (int t = 0; t < S; ++t) {
+      put(buf, local.weights[c * S + t]);
+      put(buf, local.nodes[c * S + t]);
+    }
+  }
+  for (std::size_t i = 0; i < local.node_velocity.size(); ++i) {
+    put(buf, local.node_key[i]);
+    put(buf, local.node_velocity[i]);
+    put(buf, local.node_inv_mass[i]);
+  }
+  halo_local_ += buf.size();
+  const std::vector<std::vector<char>> in = all_to_all(out);
+  // Rank 0 solves them as one set, nodes merged by key (a ghost and its owner hold the same
+  // mass and velocity after halo_velocity), contacts in rank order.
+  Real work = 0;
+  std::vector<std::vector<char>> back(n);
+  if (me == 0) {
+    ContactState all;
+    all.patches = local.patches;
+    all.node_velocity.assign(1, Vec3::Zero());
+    all.node_inv_mass.assign(1, 0);
+    all.node_key.assign(1, ~std::uint64_t{0});
+    std::unordered_map<std::uint64_t, std::uint32_t> merged;
+    for (int r = 0; r < n; ++r) {
+      const std::vector<char>& b = in[r];
+      std::size_t pos = 0;
+      const auto nc = take<std::size_t>(b, pos);
+      const int s = take<int>(b, pos);
+      const auto nn = take<std::size_t>(b, pos);
+      if (nc == 0) continue;
+      all.stencil = s;
+      const std::size_t first = all.size();
+      std::vector<std::uint32_t> refs;
+      for (std::size_t c = 0; c < nc; ++c) {
+        all.normal.push_back(take<Vec3>(b, pos));
+        all.wall_velocity.push_back(take<Vec3>(b, pos));
+        all.gap.push_back(take<Real>(b, pos));
+        all.boundary.push_back(take<Boundary>(b, pos));
+        all.friction.push_back(take<Real>(b, pos));
+        all.patch.push_back(take<std::uint32_t>(b, pos));
+        for (int t = 0; t < s; ++t) {
+          all.weights.push_back(take<Real>(b, pos));
+          refs.push_back(take<std::uint32_t>(b, pos));
+        }
+      }
+      std::vector<std::uint32_t> id(nn, 0);
+      for (std::size_t i = 0; i < nn; ++i) {
+        const auto key = take<std::uint64_t>(b, pos);
+        const auto v = take<Vec3>(b, pos);
+        const auto inv_m = take<Real>(b, pos);
+        if (key == ~std::uint64_t{0}) continue;  // the rank's "no node" entry
+        const auto [it, added] =
+            merged.emplace(key, static_cast<std::uint32_t>(all.node_key.size()));
+        if (added) {
+          all.node_key.push_back(key);
+          all.node_velocity.push_back(v);
+          all.node_inv_mass.push_back(inv_m);
+        }
+        id[i] = it->second;
+      }
+      for (std::size_t e = 0; e < refs.size(); ++e) all.nodes.push_back(id[refs[e]]);
+      all.particle.resize(first + nc);  // unused by the solve
+      all.point.resize(first + nc);
+    }
+    if (all.size() > 0) work = mpm::solve_contact(settings, dt, all);
+    std::vector<char> result;
+    for (std::size_t i = 1; i < all.node_key.size(); ++i) {
+      if (!(all.node_inv_mass[i] > 0)) continue;
+      put(result, all.node_key[i]);
+      put(result, all.node_velocity[i]);
+    }
+    for (int r = 0; r < n; ++r) back[r] = result;
+    halo_local_ += result.size() * (n - 1);
+  }
+  // Every rank sets the velocity of each node it stores, owned or ghost.
+  const std::vector<std::vector<char>> answer = all_to_all(back);
+  const std::vector<char>& b = answer[0];
+  const std::uint64_t nz = static_cast<std::uint64_t>(g.nodes.z());
+  const std::uint64_t ny = static_cast<std::uint64_t>(g.nodes.y());
+  for (std::size_t pos = 0; pos < b.size();) {
+    const auto key = take<std::uint64_t>(b, pos);
+    const auto v = take<Vec3>(b, pos);
+    const int k = static_cast<int>(key % nz), j = static_cast<int>(key / nz % ny),
+              i = static_cast<int>(key / nz / ny);
+    if (g.slot[g.page(i >> kBlockBits, j >> kBlockBits, k >> kBlockBits)] < 0) continue;
+    g.velocity[g.node_index(i, j, k)] = v;
+  }
+  return work;
 }
 
 void Domain::exchange(Simulation& sim, const std::vector<int>& dest) {

@@ -14,6 +14,8 @@ namespace mpm {
 class Simulation;
 struct Grid;
 struct AdvectStats;
+struct ContactSettings;
+struct ContactState;
 }  // namespace mpm
 
 namespace mpm::parallel {
@@ -61,9 +63,14 @@ class Domain {
   /// go to their owner, which adds them in block order; the sender then zeroes its ghosts, so
   /// only the owner updates a node and counts wall work on it.
   void add_ghost_sums(Grid& grid);
-  /// Stage halo_velocity, before grid_to_particles: the owner sends the final velocity (and
-  /// FLIP's velocity before forces) of those nodes back to the ghosts.
+  /// Stage halo_velocity, before contact and grid_to_particles: the owner sends the mass and
+  /// velocity (and FLIP's velocity before forces) of those nodes back to the ghosts.
   void return_ghost_velocities(Grid& grid);
+  /// Stage contact: every rank's contacts (`local`, found on its own particles) and the
+  /// nodes they reach go to rank 0, which solves them as one set (solve_contact,
+  /// engine/step/contact.h); every rank then takes the new velocity of each node it stores.
+  /// Returns the walls' work on rank 0, 0 on the others.
+  Real solve_contact(const ContactSettings& settings, Real dt, ContactState& local, Grid& grid);
   /// Stage migrate, after advect: particles whose stencil base left the slab go to its owner.
   void migrate(Simulation& sim);
   /// The advection statistics over all ranks (sum of counts, largest speed).

@@ -58,6 +58,8 @@ SimulationDesc read_simulation(ParamReader r) {
   s.reorder_every = r.get_or("reorder_every", s.reorder_every);
   r.check_range("reorder_every", s.reorder_every, 0, 1 << 30);
   s.simd = r.get_or("simd", s.simd);
+  s.contact = read_choice<Contact>(r, "contact",
+                                   {{"nodes", Contact::nodes}, {"particles", Contact::particles}});
   if (s.transfer == Transfer::mls && s.kernel == Kernel::linear)
     r.fail("transfer", "transfer 'mls' needs kernel quadratic or cubic (its D is not constant "
                        "for the linear kernel)");

@@ -25,6 +25,12 @@ enum class Boundary {
   separate,  ///< Only an inward normal component is removed; bodies may lift off.
 };
 
+/// Where walls and colliders act (engine/step/walls.h, engine/step/contact.h).
+enum class Contact {
+  nodes,      ///< On the grid nodes inside a wall: depends on where the wall lies between rows.
+  particles,  ///< At the particles touching a wall, solved on the grid velocities there.
+};
+
 /// Time stepping and global physics.
 struct SimulationDesc {
   int frames = 120;                   ///< Frames written after the initial state.
@@ -39,6 +45,7 @@ struct SimulationDesc {
   std::uint64_t seed = 1;             ///< Seed for particle sampling.
   int reorder_every = 8;              ///< Substeps between particle reorders by cell (0: never).
   bool simd = true;                   ///< Float SIMD transfers (true, the default); false: the scalar double path.
+  Contact contact = Contact::nodes;   ///< Where walls and colliders act.
 };
 
 /// Where particles go inside each grid cell.

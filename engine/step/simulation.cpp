@@ -267,14 +267,41 @@ void Simulation::build_stages() {
     add("gravity", [this](Real dt) { apply_gravity(dt, scene_.simulation.gravity, grid_); });
   if (s.damping > 0)
     add("damping", [this](Real dt) { apply_damping(dt, scene_.simulation.damping, grid_); });
-  // Walls act on the grid velocities of the end of the substep: place them at time + dt.
-  if (!walls_.empty())
-    add("walls", [this](Real dt) { wall_work_ += apply_walls(walls_, time_ + dt, grid_); });
-  if (!colliders_.empty())
-    add("colliders",
-        [this](Real dt) { wall_work_ += apply_colliders(colliders_, time_ + dt, grid_); });
-  add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
-  if (domain_) exchange("halo_velocity", [this](Real) { domain_->return_ghost_velocities(grid_); });
+  if (s.contact == Contact::nodes) {
+    // Walls act on the grid velocities of the end of the substep: place them at time + dt.
+    if (!walls_.empty())
+      add("walls", [this](Real dt) { wall_work_ += apply_walls(walls_, time_ + dt, grid_); });
+    if (!colliders_.empty())
+      add("colliders",
+          [this](Real dt) { wall_work_ += apply_colliders(colliders_, time_ + dt, grid_); });
+    add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
+    if (domain_)
+      exchange("halo_velocity", [this](Real) { domain_->return_ghost_velocities(grid_); });
+  } else {
+    // With more than one rank the ghosts take their owners' mass and velocity first: contact
+    // reads the nodes around every contact point.
+    if (domain_)
+      exchange("halo_velocity", [this](Real) { domain_->return_ghost_velocities(grid_); });
+    // Walls and colliders act where the particles touch them (engine/step/contact.h).
+    if (!walls_.empty() || !colliders_.empty())
+      add("contact", [this](Real dt) {
+        const Kernel kernel = scene_.simulation.kernel;
+        if (!domain_) {
+          wall_work_ += apply_contact(walls_, colliders_, ContactSettings{}, kernel, time_, dt,
+                                      particles_, grid_, contact_);
+          return;
+        }
+        find_contacts(walls_, colliders_, kernel, time_, dt, particles_, grid_, contact_);
+      });
+    // The solve over every rank's contacts is collective: a rank whose stages failed takes
+    // part with none.
+    if (domain_ && (!walls_.empty() || !colliders_.empty()))
+      exchange("contact_solve", [this](Real dt) {
+        if (!domain_->failure().empty()) contact_.clear();
+        wall_work_ += domain_->solve_contact(ContactSettings{}, dt, contact_, grid_);
+      });
+    add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
+  }
   // Advection runs inside the gather: on the SIMD path each lane set is advected while its x
   // and v are in cache (the plasticity stage below reads and writes only F and its own state,
   // so the order of the two does not matter).

@@ -8,10 +8,11 @@
 #include <utility>
 #include <vector>
 
-#include "engine/step/colliders.h"
-#include "engine/step/grid.h"
 #include "engine/core/particles.h"
 #include "engine/scene/scene_desc.h"
+#include "engine/step/colliders.h"
+#include "engine/step/contact.h"
+#include "engine/step/grid.h"
 #include "engine/step/transfer.h"
 #include "engine/step/walls.h"
 #include "materials/registry.h"
@@ -158,6 +159,7 @@ class Simulation {
   std::vector<MaterialRange> materials_;
   std::vector<WallPlane> walls_;
   std::vector<Collider> colliders_;
+  ContactState contact_;  // the contact solve's buffers, reused between substeps
   std::vector<Stage> stages_;
   double bound_seconds_ = 0;
   Real time_ = 0;

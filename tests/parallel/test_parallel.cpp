@@ -166,6 +166,17 @@ TEST_CASE("two ranks give the frames of one rank to round-off: validation cases"
   }
 }
 
+TEST_CASE("two ranks: contact at the particles is solved as one set on rank 0", "[parallel]") {
+  // simulation.contact = particles: each rank finds its own contacts, rank 0 solves every
+  // rank's together, and each rank takes the new velocities of the nodes it stores. The water
+  // pool touches the floor and four walls across both slabs; the dam break's surge front runs
+  // across the slab boundary.
+  check_round_off(
+      one_against_two("water_contact", "scenes/validation/hydrostatic_water.yaml", "", 1));
+  check_round_off(one_against_two("dam_break_contact", "scenes/validation/dam_break.yaml",
+                                  "--set simulation.contact=particles", 2));
+}
+
 TEST_CASE("two ranks: every material, objects that one rank does not hold", "[parallel]") {
   // Five objects in a row along x: each rank holds some objects' particles and none of the
   // others' (empty material ranges: the reorder stage once looped forever on them).

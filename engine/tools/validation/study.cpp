@@ -149,6 +149,23 @@ std::vector<Setting> ppc_sweep(Setting base) {
   return out;
 }
 
+/// Issue 30: the walls at 8 offsets from 0 to 7/8 of a cell against the node rows, with APIC
+/// and MLS, for each of `contacts` (simulation.contact), at each of `levels`.
+std::vector<Setting> offset_sweep(std::vector<int> levels, std::vector<const char*> contacts) {
+  std::vector<Setting> out;
+  for (Setting at_h : over_refine(levels))
+    for (const char* contact : contacts)
+      for (const char* t : {"apic", "mls"})
+        for (int k = 0; k < 8; ++k) {
+          Setting s = at_h;
+          s.contact = contact;
+          s.transfer = t;
+          s.wall_offset = k / 8.0;
+          out.push_back(s);
+        }
+  return out;
+}
+
 const std::vector<Experiment>& experiments() {
   static const std::vector<Experiment> all = [] {
     Setting bar4;
@@ -198,6 +215,15 @@ const std::vector<Experiment>& experiments() {
         // The a = 2 column at the friction angles whose plane-strain flow friction is tan 20,
         // tan 30 and tan 40 degrees (docs/validation.md, case 12): its flank slope.
         {"repose", "sand_slope", over<double>({16.573, 25.377, 35.802}, {}, set_phi), {}},
+        // Issue 30: every contact case with its walls at 8 offsets against the node rows.
+        {"offset_sliding", "wide_sliding_block", offset_sweep({1, 2}, {"nodes", "particles"}),
+         offset_sweep({1}, {"particles"})},
+        {"offset_sticking", "wide_sticking_block", offset_sweep({1, 2}, {"nodes", "particles"}),
+         offset_sweep({1}, {"particles"})},
+        {"offset_rolling", "rolling_ball", offset_sweep({1}, {"nodes", "particles"}),
+         offset_sweep({1}, {"particles"})},
+        {"offset_water", "hydrostatic_water", offset_sweep({1}, {"nodes", "particles"}),
+         offset_sweep({1}, {"particles"})},
     };
   }();
   return all;
@@ -231,6 +257,15 @@ std::vector<SceneOverride> overrides_for(const Setting& s, const SceneDesc& scen
   if (s.simd) o.push_back({"simulation.simd", *s.simd ? "true" : "false"});
   if (s.boundary) o.push_back({"walls[0].boundary", *s.boundary});
   if (s.buffer) o.push_back({"grid.buffer", std::to_string(*s.buffer)});
+  if (s.contact) o.push_back({"simulation.contact", *s.contact});
+  if (s.wall_offset) {
+    const Vec3 shift = Vec3::Constant(*s.wall_offset).cwiseProduct(scene.grid.spacing()) / s.refine;
+    const auto point = [](const Vec3& x) {
+      return "[" + text(x.x()) + ", " + text(x.y()) + ", " + text(x.z()) + "]";
+    };
+    o.push_back({"grid.origin", point(scene.grid.origin - shift)});
+    o.push_back({"grid.max", point(scene.grid.max - shift)});
+  }
   return o;
 }
 
@@ -364,6 +399,8 @@ std::string setting_label(const StudyRow& r) {
   if (r.setting.simd) s << (r.simd ? " simd" : " scalar");
   if (r.setting.boundary) s << " floor=" << *r.setting.boundary;
   if (r.setting.friction_angle) s << " phi=" << *r.setting.friction_angle;
+  if (r.setting.contact) s << " contact=" << *r.setting.contact;
+  if (r.setting.wall_offset) s << " offset=" << *r.setting.wall_offset << "h";
   return s.str();
 }
 
@@ -371,7 +408,7 @@ std::string study_csv(const std::vector<StudyRow>& rows) {
   std::ostringstream s;
   s.precision(9);
   s << "experiment,case,kernel,h,ppc,sampling,cfl,dt,transfer,precision,grid_precision,simd,"
-       "floor,status,error_name,error,"
+       "floor,contact,wall_offset,status,error_name,error,"
        "particles,substeps,particle_steps,wall_seconds,particle_steps_per_second,peak_rss_mb,"
        "measures\n";
   for (const StudyRow& r : rows) {
@@ -380,7 +417,8 @@ std::string study_csv(const std::vector<StudyRow>& rows) {
     s << r.experiment << ',' << r.case_name << ',' << r.kernel << ',' << r.h << ',' << r.ppc << ','
       << r.sampling << ',' << r.cfl << ',' << r.dt << ',' << r.transfer << ',' << kStoredPrecision
       << ',' << r.grid_precision << ',' << (r.simd ? "true" : "false") << ','
-      << r.setting.boundary.value_or("") << ',' << o.status << ",\"" << o.error_name << "\","
+      << r.setting.boundary.value_or("") << ',' << r.setting.contact.value_or("") << ','
+      << r.setting.wall_offset.value_or(0) << ',' << o.status << ",\"" << o.error_name << "\","
       << o.error << ',' << o.particles << ',' << o.substeps << ',' << steps << ',' << o.seconds
       << ',' << (o.seconds > 0 ? steps / o.seconds : 0) << ',' << r.peak_rss_bytes / 1e6 << ",\"";
     for (std::size_t i = 0; i < o.measures.size(); ++i)

@@ -28,6 +28,10 @@ struct Setting {
   std::optional<std::string> boundary;  ///< walls[0].boundary: sticky, slip or separate.
   std::optional<double> friction_angle;  ///< friction_angle of every object, degrees (sand).
   std::optional<int> buffer;  ///< grid.buffer, cells.
+  /// The grid moved by minus this many cells on every axis (origin and max alike), so every
+  /// wall lies this fraction of a cell further from the node row below it.
+  std::optional<double> wall_offset;
+  std::optional<std::string> contact;  ///< simulation.contact: nodes or particles.
 };
 
 /// One run of a study: what was set and what came out.

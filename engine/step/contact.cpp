@@ -1,0 +1,385 @@
+#include "engine/step/contact.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace mpm {
+
+namespace {
+
+/// One wall as the contact search sees it at one particle.
+struct WallHit {
+  Real distance;  ///< Signed distance of the particle from the wall, m (negative behind it).
+  Vec3 normal;    ///< Unit normal into the free side.
+  Vec3 velocity;  ///< Wall velocity at the particle, m/s.
+};
+
+/// Appends a contact for every particle that `hit(x, reach, out)` finds within `reach(q)` of
+/// one wall, in particle order whatever the thread count (each thread scans one contiguous
+/// chunk, and the chunks are joined in order).
+template <class Hit>
+void find_contacts(const Particles& p, const std::vector<Real>& radius, Real cell, Boundary b,
+                   Real friction, std::uint32_t wall, Hit&& hit, ContactState& st) {
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
+  const int threads = n >= kParallelMinItems ? omp_get_max_threads() : 1;
+  std::vector<std::vector<std::pair<std::uint32_t, WallHit>>> found(threads);
+#pragma omp parallel num_threads(threads)
+  {
+    auto& mine = found[omp_get_thread_num()];
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t q = 0; q < n; ++q) {
+      const Real r = radius[p.object[q]];
+      WallHit h;
+      if (hit(p.x[q], r + cell, h)) mine.emplace_back(static_cast<std::uint32_t>(q), h);
+    }
+  }
+  for (const auto& chunk : found)
+    for (const auto& [q, h] : chunk) {
+      st.particle.push_back(q);
+      st.point.push_back(p.x[q] - h.distance * h.normal);
+      st.normal.push_back(h.normal);
+      st.wall_velocity.push_back(h.velocity);
+      st.gap.push_back(h.distance - radius[p.object[q]]);
+      st.boundary.push_back(b);
+      st.friction.push_back(friction);
+      st.patch.push_back(wall * static_cast<std::uint32_t>(radius.size()) + p.object[q]);
+    }
+}
+
+/// The normal part of the accumulated impulse of contact c after one projected Jacobi step,
+/// from the velocity `u` interpolated at its particle: a touching particle may not move into
+/// the wall (sticky: nor away from it); one still a gap away may close the gap within this
+/// substep, no further.
+Real normal_impulse(const ContactState& st, std::size_t c, const Vec3& u, Real dt) {
+  const Vec3& n = st.normal[c];
+  const bool touching = st.gap[c] <= 0;
+  const Real target = touching ? 0 : -st.gap[c] / dt;
+  const Real ln = st.normal_impulse[c] + (target - (u - st.wall_velocity[c]).dot(n)) * st.inv_k[c];
+  return touching && st.boundary[c] == Boundary::sticky ? ln : std::max(ln, Real(0));
+}
+
+/// True where contact c is a touching particle of a sticky wall: held, with no friction law.
+bool held(const ContactState& st, std::size_t c) {
+  return st.gap[c] <= 0 && st.boundary[c] == Boundary::sticky;
+}
+
+/// True where contact c takes part in friction: held, or on a wall with friction.
+bool rubs(const ContactState& st, std::size_t c) {
+  return held(st, c) || st.friction[c] > 0;
+}
+
+/// The contacts' stencils (weights, grid storage indices), then compact node indices in
+/// first-touch order with each node's velocity, inverse mass and key.
+template <int N>
+void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, ContactState& st) {
+  constexpr int S = N * N * N;
+  const std::size_t nc = st.size();
+  const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(nc);
+  constexpr std::size_t kNone = ~std::size_t{0};
+  std::vector<std::size_t> storage_index(nc * S);
+  st.stencil = S;
+  st.weights.resize(nc * S);
+  // The stencil of the contact point, on the wall: the velocity there is the contact's, so a
+  // ball rolls on the wall, not on its particles' centres. Nodes the point reaches that hold
+  // no mass (behind the wall, beyond the body's stencils) take no part: the weights of the
+  // others are scaled to sum to one.
+#pragma omp parallel for schedule(static) if (sn * S >= kParallelMinItems)
+  for (std::ptrdiff_t c = 0; c < sn; ++c) {
+    dispatch_kernel(kernel, [&]<Kernel K>() {
+      if constexpr (KernelTraits<K>::kNodes == N) {
+        const auto s = make_stencil<K>(st.point[c], g.origin, g.inv_h);
+        int t = 0;
+        Real sum = 0;
+        for (int i = 0; i < N; ++i)
+          for (int j = 0; j < N; ++j)
+            for (int k = 0; k < N; ++k, ++t) {
+              const Vec3i n = s.base + Vec3i(i, j, k);
+              std::size_t at = kNone;
+              if ((n.array() >= 0).all() && (n.array() < g.nodes.array()).all() &&
+                  g.slot[g.page(n.x() >> Grid::kBlockBits, n.y() >> Grid::kBlockBits,
+                                n.z() >> Grid::kBlockBits)] >= 0) {
+                at = g.node_index(n.x(), n.y(), n.z());
+                if (!(g.mass[at] > 0)) at = kNone;
+              }
+              storage_index[c * S + t] = at;
+              st.weights[c * S + t] = at == kNone ? 0 : s.weight(i, j, k);
+              sum += st.weights[c * S + t];
+            }
+        for (t = 0; t < S; ++t) st.weights[c * S + t] = sum > 0 ? st.weights[c * S + t] / sum : 0;
+      }
+    });
+  }
+  // Only the contacts that act take part: touching, or closing their gap within the substep
+  // at the velocity interpolated now (the solve's impulses only push particles away).
+  std::size_t kept = 0;
+  for (std::size_t c = 0; c < nc; ++c) {
+    Vec3 u = Vec3::Zero();
+    Real sum = 0;
+    for (int t = 0; t < S; ++t) {
+      const std::size_t at = storage_index[c * S + t];
+      if (at == kNone) continue;
+      u += st.weights[c * S + t] * g.velocity[at];
+      sum += st.weights[c * S + t];
+    }
+    if (sum == 0) continue;
+    if (!(st.gap[c] <= 0 || (u - st.wall_velocity[c]).dot(st.normal[c]) < -st.gap[c] / dt))
+      continue;
+    st.particle[kept] = st.particle[c];
+    st.point[kept] = st.point[c];
+    st.normal[kept] = st.normal[c];
+    st.wall_velocity[kept] = st.wall_velocity[c];
+    st.gap[kept] = st.gap[c];
+    st.boundary[kept] = st.boundary[c];
+    st.friction[kept] = st.friction[c];
+    st.patch[kept] = st.patch[c];
+    for (int t = 0; t < S; ++t) {
+      st.weights[kept * S + t] = st.weights[c * S + t];
+      storage_index[kept * S + t] = storage_index[c * S + t];
+    }
+    ++kept;
+  }
+  for (auto* v : {&st.particle, &st.patch}) v->resize(kept);
+  for (auto* v : {&st.point, &st.normal, &st.wall_velocity}) v->resize(kept);
+  st.gap.resize(kept);
+  st.boundary.resize(kept);
+  st.friction.resize(kept);
+  st.weights.resize(kept * S);
+  if (st.compact.size() < g.mass.size()) st.compact.resize(g.mass.size(), -1);
+  st.storage.assign(1, kNone);  // compact node 0: none, weight 0, no mass
+  st.nodes.resize(kept * S);
+  for (std::size_t e = 0; e < kept * S; ++e) {
+    if (storage_index[e] == kNone) {
+      st.nodes[e] = 0;
+      continue;
+    }
+    std::int32_t& id = st.compact[storage_index[e]];
+    if (id < 0) {
+      id = static_cast<std::int32_t>(st.storage.size());
+      st.storage.push_back(storage_index[e]);
+    }
+    st.nodes[e] = static_cast<std::uint32_t>(id);
+  }
+  const std::size_t nn = st.storage.size();
+  st.node_velocity.resize(nn);
+  st.node_inv_mass.resize(nn);
+  st.node_key.resize(nn);
+  constexpr int E = Grid::kBlockEdge;
+  st.node_velocity[0] = Vec3::Zero();
+  st.node_inv_mass[0] = 0;
+  st.node_key[0] = ~std::uint64_t{0};
+  for (std::size_t i = 1; i < nn; ++i) {
+    const std::size_t at = st.storage[i];
+    st.compact[at] = -1;
+    st.node_velocity[i] = g.velocity[at];
+    st.node_inv_mass[i] = g.mass[at] > 0 ? 1 / g.mass[at] : 0;
+    const Vec3i first = g.block_first[at / Grid::kBlockNodes];
+    const int o = static_cast<int>(at % Grid::kBlockNodes);
+    const Vec3i node = first + Vec3i(o / (E * E), o / E % E, o % E);
+    st.node_key[i] = (static_cast<std::uint64_t>(node.x()) * g.nodes.y() + node.y()) *
+                         static_cast<std::uint64_t>(g.nodes.z()) +
+                     node.z();
+  }
+}
+
+}  // namespace
+
+Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st) {
+  const int S = st.stencil;
+  const std::size_t nc = st.size();
+  const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(nc);
+  const std::size_t nn = st.node_velocity.size();
+  const std::ptrdiff_t snn = static_cast<std::ptrdiff_t>(nn);
+  st.normal_impulse.assign(nc, 0);
+  st.inv_k.assign(nc, 0);
+  // The iterations' loops are short: threads only pay off for large contact sets (each
+  // parallel loop is a fork and a barrier, a dozen times per iteration).
+  const bool par = sn * S >= 32 * kParallelMinItems;
+  std::vector<Vec3>& v = st.node_velocity;
+  const std::vector<Real>& inv_m = st.node_inv_mass;
+  std::vector<Vec3> u(nc);
+  const auto interpolate = [&] {
+#pragma omp parallel for schedule(static) if (par)
+    for (std::ptrdiff_t c = 0; c < sn; ++c) {
+      Vec3 sum = Vec3::Zero();
+      for (int t = 0; t < S; ++t) sum += st.weights[c * S + t] * v[st.nodes[c * S + t]];
+      u[c] = sum;
+    }
+  };
+  interpolate();
+  // The row sums of W M^-1 W^T: a contact's step is its violation over its row sum, so the
+  // part of the impulses that is the same at every contact, a body pressing on the wall as a
+  // whole, is found in the first iteration, and no mode is overshot.
+  std::vector<Real> share(nn, 0);
+  for (std::size_t e = 0; e < nc * S; ++e) share[st.nodes[e]] += st.weights[e];
+#pragma omp parallel for schedule(static) if (par)
+  for (std::ptrdiff_t c = 0; c < sn; ++c) {
+    Real k = 0;
+    for (int t = 0; t < S; ++t) {
+      const std::uint32_t i = st.nodes[c * S + t];
+      const Real w = st.weights[c * S + t];
+      k += w * share[i] * inv_m[i];
+    }
+    st.inv_k[c] = k > 0 ? 1 / k : 0;
+  }
+  // Friction is Coulomb's law on the traction, a field over the contact. A particle's own
+  // normal impulse is one of many equivalent splits of it among the particles that share
+  // nodes (W M^-1 W^T is singular there), so the law is applied at the nodes: each contact
+  // asks for the tangential impulse that would stop its particle sliding, the requests are
+  // summed at the nodes, and each node's accumulated friction impulse is kept within mu
+  // times the normal impulse it received. Sliding everywhere, the total is then mu times the
+  // total normal impulse exactly. A touching particle of a sticky wall is held directly.
+  std::vector<Vec3> friction(nn, Vec3::Zero()), trial(nn), step(nn), wall_v(nn);
+  std::vector<Real> cap(nn), rubbing(nn);
+  std::vector<Real> ln(nc);
+  std::vector<Vec3> ask(nc);
+  std::vector<Real> load(st.patches), rubbers(st.patches);
+  Real work = 0, first_change = 0;
+  for (int it = 0; it < settings.iterations; ++it) {
+    if (it > 0) interpolate();
+    Real largest = 0;
+#pragma omp parallel for schedule(static) reduction(max : largest) if (par)
+    for (std::ptrdiff_t c = 0; c < sn; ++c) {
+      ln[c] = normal_impulse(st, c, u[c], dt);
+      const Vec3& n = st.normal[c];
+      const Vec3 ur = u[c] - st.wall_velocity[c];
+      ask[c] = rubs(st, c) ? Vec3(-(ur - ur.dot(n) * n) * st.inv_k[c]) : Vec3::Zero();
+      largest = std::max({largest, std::abs(ln[c] - st.normal_impulse[c]), ask[c].norm()});
+    }
+    if (largest == 0) break;
+    std::fill(load.begin(), load.end(), 0);
+    std::fill(rubbers.begin(), rubbers.end(), 0);
+    for (std::size_t c = 0; c < nc; ++c)
+      if (rubs(st, c) && !held(st, c)) {
+        load[st.patch[c]] += st.friction[c] * std::max(ln[c], Real(0));
+        rubbers[st.patch[c]] += 1;
+      }
+    std::fill(step.begin(), step.end(), Vec3::Zero());
+    std::fill(trial.begin(), trial.end(), Vec3::Zero());
+    std::fill(cap.begin(), cap.end(), 0);
+    std::fill(rubbing.begin(), rubbing.end(), 0);
+    std::fill(wall_v.begin(), wall_v.end(), Vec3::Zero());
+    // Scattered in contact order (the same on any thread count).
+    for (std::size_t c = 0; c < nc; ++c) {
+      const Real dn = ln[c] - st.normal_impulse[c];
+      st.normal_impulse[c] = ln[c];
+      work += dn * st.normal[c].dot(st.wall_velocity[c]);
+      const bool hold = held(st, c);
+      if (hold) work += ask[c].dot(st.wall_velocity[c]);
+      const bool rub = !hold && rubs(st, c);
+      const Real share = rub ? load[st.patch[c]] / rubbers[st.patch[c]] : 0;
+      for (int t = 0; t < S; ++t) {
+        const std::uint32_t i = st.nodes[c * S + t];
+        const Real w = st.weights[c * S + t];
+        step[i] += w * (dn * st.normal[c] + (hold ? ask[c] : Vec3::Zero()));
+        if (!rub) continue;
+        trial[i] += w * ask[c];
+        cap[i] += w * share;
+        wall_v[i] += w * st.wall_velocity[c];
+        rubbing[i] += w;
+      }
+    }
+    Real node_work = 0, change = 0;
+#pragma omp parallel for schedule(static) reduction(+ : node_work) reduction(max : change) if (par)
+    for (std::ptrdiff_t i = 0; i < snn; ++i) {
+      Vec3 f = friction[i] + trial[i];
+      const Real t = f.norm();
+      if (t > cap[i]) f = t > 0 ? Vec3(f * (cap[i] / t)) : Vec3::Zero();
+      const Vec3 df = f - friction[i];
+      friction[i] = f;
+      if (rubbing[i] > 0) node_work += df.dot(wall_v[i]) / rubbing[i];
+      const Vec3 dv = (step[i] + df) * inv_m[i];
+      v[i] += dv;
+      change = std::max(change, dv.squaredNorm());
+    }
+    work += node_work;
+    // Converged when the velocity changes have fallen by the settings' factor.
+    if (it == 0) first_change = change;
+    if (change <= settings.tolerance * settings.tolerance * first_change) break;
+  }
+  return work;
+}
+
+void ContactState::clear() {
+  particle.clear();
+  point.clear();
+  normal.clear();
+  wall_velocity.clear();
+  gap.clear();
+  boundary.clear();
+  friction.clear();
+  patch.clear();
+  normal_impulse.clear();
+  inv_k.clear();
+  nodes.clear();
+  weights.clear();
+  node_velocity.clear();
+  node_inv_mass.clear();
+  node_key.clear();
+  storage.clear();
+}
+
+void write_contact_velocities(const ContactState& st, Grid& g) {
+  for (std::size_t i = 1; i < st.storage.size(); ++i)
+    if (st.node_inv_mass[i] > 0) g.velocity[st.storage[i]] = st.node_velocity[i];
+}
+
+void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
+                   Kernel kernel, Real time, Real dt, const Particles& p, const Grid& g,
+                   ContactState& st) {
+  st.clear();
+  // A particle's radius is half its spacing: a body's outer particles lie that far inside
+  // its surface (sampling.cpp), so the surface, not the particle centres, meets the wall.
+  std::vector<Real> radius(p.object_volume0.size());
+  for (std::size_t o = 0; o < radius.size(); ++o)
+    radius[o] = Real(0.5) * std::cbrt(p.object_volume0[o]);
+  const Real cell = g.h.maxCoeff();
+  std::uint32_t wall = 0;
+  for (const WallPlane& w : planes) {
+    const Vec3 point = w.point + w.offset(time);
+    const Vec3 velocity = w.velocity_at(time + dt);
+    find_contacts(
+        p, radius, cell, w.boundary, w.friction, wall++,
+        [&](const Vec3& x, Real reach, WallHit& h) {
+          const Real d = (x - point).dot(w.normal);
+          if (d >= reach) return false;
+          h = {d, w.normal, velocity};
+          return true;
+        },
+        st);
+  }
+  for (const Collider& c : colliders) {
+    const ColliderPose now = c.pose(time), next = c.pose(time + dt);
+    const Vec3 margin =
+        Vec3::Constant(radius.empty() ? 0 : *std::max_element(radius.begin(), radius.end()) + cell);
+    const Eigen::AlignedBox<Real, 3> near(now.bounds.min() - margin, now.bounds.max() + margin);
+    find_contacts(
+        p, radius, cell, c.boundary, c.friction, wall++,
+        [&](const Vec3& x, Real reach, WallHit& h) {
+          if (!near.contains(x)) return false;
+          const Vec3 x0 = now.to_rest(x);
+          if (c.phi(x0) >= reach) return false;  // the normal only where needed
+          const SdfSample s = c.sample(x0);
+          if (s.normal.squaredNorm() == 0) return false;
+          h = {s.phi, now.rotation * s.normal, next.velocity_at(x)};
+          return true;
+        },
+        st);
+  }
+  st.patches = wall * radius.size();
+  dispatch_kernel(
+      kernel, [&]<Kernel K>() { gather_stencils<KernelTraits<K>::kNodes>(kernel, dt, p, g, st); });
+}
+
+Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
+                   const ContactSettings& settings, Kernel kernel, Real time, Real dt,
+                   const Particles& p, Grid& g, ContactState& st) {
+  find_contacts(planes, colliders, kernel, time, dt, p, g, st);
+  if (st.size() == 0) return 0;
+  const Real work = solve_contact(settings, dt, st);
+  write_contact_velocities(st, g);
+  return work;
+}
+
+}  // namespace mpm

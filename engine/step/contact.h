@@ -1,0 +1,90 @@
+#pragma once
+/// \file Contact of the particles with the walls and colliders, solved on the grid velocities
+/// at the particles: the same answer wherever a wall lies between the node rows.
+///
+/// A wall's reaction enters the grid where the material touches it: at each particle within
+/// reach of a wall, through that particle's own interpolation weights, as a Lagrange
+/// multiplier (an impulse) that makes the grid velocity interpolated at the particle obey the
+/// wall's condition. This is the weak form's boundary term (the traction integrated against
+/// the shape functions at the contact, not at the nodes nearest the wall): frictional contact
+/// on the material particles, posed on the grid's velocities (Li et al. 2021, "BFEMP:
+/// interpenetration-free MPM-FEM coupling with barrier contact", arXiv:2108.03349, which
+/// reduces to separable frictional boundaries for MPM; M. Li, "Physics-Based Simulation",
+/// lecture 28.2, "Frictional contact on material particles"). Here the constraint is solved
+/// directly, not through a barrier: projected Jacobi iterations on accumulated impulses with
+/// a Coulomb disk (Erleben 2007, "Velocity-based shock propagation for multibody dynamics
+/// animation", ACM TOG 26(2)), each contact's step scaled by its row sum of W M^-1 W^T, so
+/// that a body pressing on a wall as a whole is solved in one iteration.
+/// A particle still a gap g away is held back to -g / dt (speculative contacts, as in Jolt
+/// Physics), so nothing passes a wall between two substeps.
+
+#include <vector>
+
+#include "engine/core/particles.h"
+#include "engine/scene/scene_desc.h"
+#include "engine/step/colliders.h"
+#include "engine/step/grid.h"
+#include "engine/step/kernels.h"
+#include "engine/step/walls.h"
+
+namespace mpm {
+
+/// Settings of the contact solve.
+struct ContactSettings {
+  int iterations = 12;    ///< Most projected Jacobi iterations per substep.
+  Real tolerance = 1e-3;  ///< Stop when the largest node velocity change falls by this factor.
+};
+
+/// The contact solve's per-substep state (kept between substeps so its buffers are reused).
+/// Contacts are indexed in the order they were found; the nodes their stencils touch get
+/// compact indices in first-touch order.
+struct ContactState {
+  std::vector<std::uint32_t> particle;  ///< Particle of each contact.
+  std::vector<Vec3> point;              ///< Contact point: the particle projected on the wall.
+  std::vector<Vec3> normal;             ///< Wall normal at the particle (into the free side).
+  std::vector<Vec3> wall_velocity;      ///< Wall velocity at the particle, m/s.
+  std::vector<Real> gap;                ///< Distance to the wall less the particle's radius, m.
+  std::vector<Boundary> boundary;       ///< The wall's condition.
+  std::vector<Real> friction;           ///< The wall's Coulomb coefficient.
+  std::vector<std::uint32_t> patch;     ///< Wall index times objects plus object index.
+  std::size_t patches = 0;              ///< Walls times objects.
+  std::vector<Real> normal_impulse;     ///< Accumulated normal impulse on the grid, N s.
+  std::vector<Real> inv_k;              ///< 1 / (row sum of W M^-1 W^T), kg.
+  int stencil = 0;                      ///< Nodes per contact (kernel nodes per axis cubed).
+  std::vector<std::uint32_t> nodes;     ///< Compact node index, `stencil` per contact.
+  std::vector<Real> weights;            ///< Stencil weights, `stencil` per contact.
+  std::vector<Vec3> node_velocity;      ///< Velocity of each compact node, m/s.
+  std::vector<Real> node_inv_mass;      ///< 1 / mass of each compact node (0 if massless).
+  std::vector<std::uint64_t> node_key;  ///< Grid-wide index (i nodes.y + j) nodes.z + k.
+  std::vector<std::size_t> storage;     ///< Grid storage index of each compact node (node 0:
+                                        ///< none, for stencil nodes without mass).
+  std::vector<std::int32_t> compact;    ///< Scratch per grid storage slot, -1 between uses.
+  std::size_t size() const { return particle.size(); }  ///< Number of contacts.
+  /// Drops every contact and node (the scratch `compact` stays).
+  void clear();
+};
+
+/// Finds the particles within reach of each plane wall and collider at time `time` (a
+/// particle's reach is its radius, half its spacing, plus one cell: no particle moves a cell
+/// in a substep), with the wall's normal, velocity at time + dt and condition, and their
+/// stencils' nodes and weights; `state` then holds the contacts and their nodes' velocities.
+void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
+                   Kernel kernel, Real time, Real dt, const Particles& particles, const Grid& grid,
+                   ContactState& state);
+
+/// Solves the walls' conditions at the contacts on `state`'s node velocities: sticky, the
+/// velocity relative to the wall is zero; slip and separate, the normal part may only point
+/// away, with Coulomb friction. Returns the work (J) the moving walls did on the grid: the
+/// impulses times the walls' velocities.
+Real solve_contact(const ContactSettings& settings, Real dt, ContactState& state);
+
+/// Writes `state`'s node velocities back to the grid nodes they came from.
+void write_contact_velocities(const ContactState& state, Grid& grid);
+
+/// find_contacts, solve_contact and write_contact_velocities on one rank. Returns the work of
+/// the moving walls.
+Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
+                   const ContactSettings& settings, Kernel kernel, Real time, Real dt,
+                   const Particles& particles, Grid& grid, ContactState& state);
+
+}  // namespace mpm
