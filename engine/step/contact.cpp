@@ -49,7 +49,7 @@ void find_contacts(const Particles& p, const std::vector<Real>& radius, Real cel
 }
 
 /// The normal part of the accumulated impulse of contact c after one projected Jacobi step,
-/// from the velocity `u` interpolated at its particle: a touching particle may not move into
+/// from the velocity `u` interpolated at its contact point: a touching particle may not move into
 /// the wall (sticky: nor away from it); one still a gap away may close the gap within this
 /// substep, no further.
 Real normal_impulse(const ContactState& st, std::size_t c, const Vec3& u, Real dt) {
@@ -226,10 +226,13 @@ Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st) {
   // Friction is Coulomb's law on the traction, a field over the contact. A particle's own
   // normal impulse is one of many equivalent splits of it among the particles that share
   // nodes (W M^-1 W^T is singular there), so the law is applied at the nodes: each contact
-  // asks for the tangential impulse that would stop its particle sliding, the requests are
-  // summed at the nodes, and each node's accumulated friction impulse is kept within mu
-  // times the normal impulse it received. Sliding everywhere, the total is then mu times the
-  // total normal impulse exactly. A touching particle of a sticky wall is held directly.
+  // asks for the tangential impulse that would stop its contact point sliding, the requests
+  // are summed at the nodes, and each node's accumulated friction impulse is kept within its
+  // share of the capacity, mu times the normal impulse of every contact of the same wall and
+  // object spread evenly over them. Bounds from the particles' own split, or smoothed over
+  // their nodes or 4^3-node blocks, let a block on an incline creep (docs/accuracy.md). Sliding
+  // everywhere, the total is mu times the total normal impulse exactly. A touching particle
+  // of a sticky wall is held directly.
   std::vector<Vec3> friction(nn, Vec3::Zero()), trial(nn), step(nn), wall_v(nn);
   std::vector<Real> cap(nn), rubbing(nn);
   std::vector<Real> ln(nc);

@@ -1,20 +1,24 @@
 #pragma once
-/// \file Contact of the particles with the walls and colliders, solved on the grid velocities
-/// at the particles: the same answer wherever a wall lies between the node rows.
+/// \file Contact of the particles with the walls and colliders (simulation.contact:
+/// particles), solved on the grid velocities at the contact points: the same answer wherever
+/// a wall lies between the node rows.
 ///
 /// A wall's reaction enters the grid where the material touches it: at each particle within
-/// reach of a wall, through that particle's own interpolation weights, as a Lagrange
-/// multiplier (an impulse) that makes the grid velocity interpolated at the particle obey the
-/// wall's condition. This is the weak form's boundary term (the traction integrated against
-/// the shape functions at the contact, not at the nodes nearest the wall): frictional contact
-/// on the material particles, posed on the grid's velocities (Li et al. 2021, "BFEMP:
-/// interpenetration-free MPM-FEM coupling with barrier contact", arXiv:2108.03349, which
-/// reduces to separable frictional boundaries for MPM; M. Li, "Physics-Based Simulation",
-/// lecture 28.2, "Frictional contact on material particles"). Here the constraint is solved
-/// directly, not through a barrier: projected Jacobi iterations on accumulated impulses with
-/// a Coulomb disk (Erleben 2007, "Velocity-based shock propagation for multibody dynamics
-/// animation", ACM TOG 26(2)), each contact's step scaled by its row sum of W M^-1 W^T, so
-/// that a body pressing on a wall as a whole is solved in one iteration.
+/// reach of a wall, through the interpolation weights of the particle's projection on the wall
+/// (its contact point), as a Lagrange multiplier (an impulse) that makes the grid velocity
+/// interpolated there obey the wall's condition. This is the weak form's boundary term (the
+/// traction integrated against the shape functions at the contact, not at the nodes nearest
+/// the wall): frictional contact on the material particles, posed on the grid's velocities
+/// (Li et al. 2021, "BFEMP: interpenetration-free MPM-FEM coupling with barrier contact",
+/// arXiv:2108.03349, which reduces to separable frictional boundaries for MPM; M. Li,
+/// "Physics-Based Simulation", lecture 28.2, "Frictional contact on material particles").
+/// Here the constraint is solved directly, not through a barrier: projected Jacobi
+/// iterations on accumulated normal impulses (Erleben 2007, "Velocity-based shock
+/// propagation for multibody dynamics animation", ACM TOG 26(2)), each contact's step scaled
+/// by its row sum of W M^-1 W^T, so that a body pressing on a wall as a whole is solved in
+/// one iteration. Friction is Coulomb's bound on the impulses gathered at the nodes, with the
+/// capacity (mu times the normal impulse) pooled over each wall and object (contact.cpp says
+/// why; docs/accuracy.md, "Walls between the node rows", what it measures).
 /// A particle still a gap g away is held back to -g / dt (speculative contacts, as in Jolt
 /// Physics), so nothing passes a wall between two substeps.
 
