@@ -79,6 +79,7 @@ GridDesc read_grid(ParamReader r) {
   for (int a = 0; a < 3; ++a)
     if (!std::isnormal(g.spacing()[a]))
       r.fail("max", "the cell size (max - origin) / dims overflows or underflows");
+  if (r.has("sampling_origin")) g.sampling_origin = r.require<Vec3>("sampling_origin");
   g.float_nodes = read_choice<bool>(r, "precision", {{"double", false}, {"float", true}});
   g.buffer = r.get_or("buffer", g.buffer);
   r.check_range("buffer", g.buffer, 2, 1e5);

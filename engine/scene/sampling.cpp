@@ -24,11 +24,15 @@ std::vector<Vec3> sample_inside(const TriangleMesh& mesh, const GridDesc& gd, in
                                 std::uint64_t seed, std::uint64_t stream) {
   const InsideTester tester(mesh);
   const Vec3 h = gd.spacing();
+  // The lattice's cells: from the sampling origin, clipped to the grid's box.
+  const Vec3 origin = gd.sampling_origin.value_or(gd.origin);
+  const Eigen::AlignedBox<Real, 3> box =
+      tester.bounds().intersection(Eigen::AlignedBox<Real, 3>(gd.origin, gd.max));
+  if (box.isEmpty()) return {};
   Vec3i lo, hi;
   for (int a = 0; a < 3; ++a) {
-    lo[a] = std::max(0, static_cast<int>(std::floor((tester.bounds().min()[a] - gd.origin[a]) / h[a])));
-    hi[a] = std::min(gd.dims[a] - 1,
-                     static_cast<int>(std::floor((tester.bounds().max()[a] - gd.origin[a]) / h[a])));
+    lo[a] = static_cast<int>(std::floor((box.min()[a] - origin[a]) / h[a]));
+    hi[a] = static_cast<int>(std::floor((box.max()[a] - origin[a]) / h[a]));
   }
   if ((hi - lo).minCoeff() < 0) return {};
   const int strata = static_cast<int>(std::lround(std::cbrt(per_cell)));
@@ -45,16 +49,16 @@ std::vector<Vec3> sample_inside(const TriangleMesh& mesh, const GridDesc& gd, in
       for (int k = lo.z(); k <= hi.z(); ++k) {
         const std::uint64_t cell =
             (static_cast<std::uint64_t>(i) * gd.dims.y() + j) * gd.dims.z() + k;
-        const Vec3 corner = gd.origin + Vec3(i, j, k).cwiseProduct(h);
+        const Vec3 corner = origin + Vec3(i, j, k).cwiseProduct(h);
         for (int s = 0; s < per_cell; ++s) {
-          const std::uint64_t key = mix(base_key ^ mix(cell * 1024 + s)) ;
+          const std::uint64_t key = mix(base_key ^ mix(cell * 1024 + s));
           Vec3 u(hash_uniform(key), hash_uniform(key + 1), hash_uniform(key + 2));
           if (stratified) {
             const Vec3 sub(s / (strata * strata), (s / strata) % strata, s % strata);
             u = (sub + (regular ? Vec3::Constant(0.5) : u)) / strata;
           }
           const Vec3 x = corner + u.cwiseProduct(h);
-          if (tester.inside(x)) out.push_back(x);
+          if (box.contains(x) && tester.inside(x)) out.push_back(x);
         }
       }
   }

@@ -59,6 +59,9 @@ struct GridDesc {
   Vec3 origin{0, 0, 0};  ///< Minimum corner, m.
   Vec3 max{1, 1, 1};     ///< Maximum corner, m.
   Vec3i dims{100, 100, 100};  ///< Cells per axis.
+  /// A corner of the lattice particles are sampled on (cells of size h from it); the grid's
+  /// origin when unset. Fixing it while the grid moves keeps every particle in place.
+  std::optional<Vec3> sampling_origin;
   int buffer = 3;        ///< Cells lining the boundary that particles never enter.
   bool float_nodes = false;  ///< Node mass, momentum and velocity stored in float (precision).
   FileLoc loc;           ///< Where `dims` is written (for errors about the grid's size).

@@ -15,8 +15,10 @@ cmake --build "$build" --parallel "$(nproc)" \
 "$build/bin/test_materials"
 "$build/bin/test_transfers"
 # The quick study forks a child per run; libgomp hangs in a child forked after the parent has
-# run a parallel region, so the study gets a process of its own, as under ctest.
+# run a parallel region, so the study gets a process of its own, as under ctest. (Every test that
+# runs a study is named "quick study: ...".) The offset sweeps ([offset], issue 30) test where
+# walls lie against the node rows, not the stored precision, and are left to the main build.
 "$build/bin/test_validation" "~quick study*"
-"$build/bin/test_validation" "quick study*"
+"$build/bin/test_validation" "quick study*" "~[offset]"
 "$build/bin/test_physics" "free fall*,determinism*"
 echo "double particle storage: built and tested"

@@ -56,6 +56,11 @@ TEST_CASE("scene: a minimal scene loads with defaults", "[scene]") {
   CHECK(s.simulation.transfer == Transfer::apic);
   CHECK(s.grid.dims == Vec3i(20, 20, 20));
   CHECK(s.grid.spacing().x() == Approx(0.05));
+  CHECK_FALSE(s.grid.sampling_origin);
+  std::string moved = minimal_scene();
+  moved.replace(moved.find("  max: [1, 1, 1]"), 16,
+                "  max: [1, 1, 1]\n  sampling_origin: [0.01, 0, 0]");
+  CHECK(scene_from(moved).grid.sampling_origin == Vec3(0.01, 0, 0));
   REQUIRE(s.objects.size() == 1);
   CHECK(s.objects[0].scale == Vec3::Constant(0.2));
   CHECK(s.objects[0].params.at("E") == Approx(1e4));

@@ -81,3 +81,21 @@ TEST_CASE("sampling is deterministic for a seed and differs between seeds", "[sc
   CHECK(a != c);
   CHECK(static_cast<double>(a.size()) == Approx(0.008 / g.spacing().prod() * 8).epsilon(0.03));
 }
+
+TEST_CASE("a grid moved with its sampling origin kept samples the same particles", "[scene]") {
+  // Issue 30's offset sweeps move the node rows against the walls, not the particles.
+  TriangleMesh m = load_mesh(test::cube_mesh());
+  transform_mesh(m, Vec3::Constant(0.2), Vec3(0, 30, 0), Vec3(0.5, 0.5, 0.5));
+  GridDesc g;
+  g.dims = Vec3i::Constant(40);
+  for (const bool regular : {true, false}) {
+    const auto before = sample_inside(m, g, 8, regular, 1, 0);
+    GridDesc moved = g;
+    const Vec3 shift = Vec3(0.3, 0.55, 0.8) * g.spacing().x();
+    moved.origin -= shift;
+    moved.max -= shift;
+    CHECK(sample_inside(m, moved, 8, regular, 1, 0) != before);  // the lattice moved with it
+    moved.sampling_origin = g.origin;
+    CHECK(sample_inside(m, moved, 8, regular, 1, 0) == before);
+  }
+}

@@ -74,7 +74,7 @@ TEST_CASE("quick study: the still water column's pressure error shrinks with h",
 }
 
 TEST_CASE(
-    "offset study: with contact at the particles, the incline blocks do not depend on "
+    "quick study: with contact at the particles, the incline blocks do not depend on "
     "where the floor lies between the node rows",
     "[validation][incline][offset]") {
   // Issue 30: the floor at 8 offsets from 0 to 7/8 of a cell against the node rows, APIC and
@@ -100,4 +100,28 @@ TEST_CASE(
   }
   CHECK(sliding == 16);
   CHECK(sticking == 16);
+}
+
+TEST_CASE(
+    "quick study: with contact at the particles, a sand column's runout does not depend on "
+    "where the floor lies between the node rows",
+    "[validation][sand][offset]") {
+  // Issue 30: sand_slope (a = 2, flow friction tan 30, sticky floor, slip side walls) with the
+  // grid moved by 0 to 7/8 of a cell, APIC, simulation.contact = particles: the runout changes
+  // by less than 5 % of its mean. (MLS spreads 5.3 % and is not asserted: docs/accuracy.md.)
+  StudyOptions opt;
+  opt.quick = true;
+  opt.experiments = {"offset_collapse"};
+  const std::vector<StudyRow> rows = run_study(opt);
+  REQUIRE(rows.size() == 8);
+  double lo = 1e300, hi = -1e300, sum = 0;
+  for (const StudyRow& r : rows) {
+    INFO(setting_label(r) << ": runout " << r.outcome.measure("runout_a2").value);
+    REQUIRE(r.outcome.status == "ok");
+    REQUIRE(r.setting.contact == std::optional<std::string>("particles"));
+    const double runout = r.outcome.measure("runout_a2").value;
+    lo = std::min(lo, runout), hi = std::max(hi, runout), sum += runout;
+  }
+  INFO("runout " << lo << " to " << hi);
+  CHECK((hi - lo) / (sum / rows.size()) < 0.05);
 }

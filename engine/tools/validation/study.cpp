@@ -149,13 +149,14 @@ std::vector<Setting> ppc_sweep(Setting base) {
   return out;
 }
 
-/// Issue 30: the walls at 8 offsets from 0 to 7/8 of a cell against the node rows, with APIC
-/// and MLS, for each of `contacts` (simulation.contact), at each of `levels`.
-std::vector<Setting> offset_sweep(std::vector<int> levels, std::vector<const char*> contacts) {
+/// Issue 30: the walls at 8 offsets from 0 to 7/8 of a cell against the node rows, with each
+/// of `transfers`, for each of `contacts` (simulation.contact), at each of `levels`.
+std::vector<Setting> offset_sweep(std::vector<int> levels, std::vector<const char*> contacts,
+                                  std::vector<const char*> transfers = {"apic", "mls"}) {
   std::vector<Setting> out;
   for (Setting at_h : over_refine(levels))
     for (const char* contact : contacts)
-      for (const char* t : {"apic", "mls"})
+      for (const char* t : transfers)
         for (int k = 0; k < 8; ++k) {
           Setting s = at_h;
           s.contact = contact;
@@ -164,6 +165,12 @@ std::vector<Setting> offset_sweep(std::vector<int> levels, std::vector<const cha
           out.push_back(s);
         }
   return out;
+}
+
+/// `settings`, each with one cell of margin around the grid (its node rows unchanged).
+std::vector<Setting> with_margin(std::vector<Setting> settings) {
+  for (Setting& s : settings) s.margin = 1;
+  return settings;
 }
 
 const std::vector<Experiment>& experiments() {
@@ -224,6 +231,9 @@ const std::vector<Experiment>& experiments() {
          offset_sweep({1}, {"particles"})},
         {"offset_water", "hydrostatic_water", offset_sweep({1}, {"nodes", "particles"}),
          offset_sweep({1}, {"particles"})},
+        // sand_slope's side walls lie on its buffer's edge: a cell of margin lets them move.
+        {"offset_collapse", "sand_slope", with_margin(offset_sweep({1}, {"nodes", "particles"})),
+         with_margin(offset_sweep({1}, {"particles"}, {"apic"}))},
     };
   }();
   return all;
@@ -238,7 +248,7 @@ std::string text(double v) {
 /// The --set overrides for `s` on a scene whose grid has `dims` cells.
 std::vector<SceneOverride> overrides_for(const Setting& s, const SceneDesc& scene) {
   std::vector<SceneOverride> o;
-  const Vec3i d = scene.grid.dims * s.refine;
+  const Vec3i d = scene.grid.dims * s.refine + Vec3i::Constant(2 * s.margin.value_or(0));
   o.push_back({"grid.dims", "[" + std::to_string(d.x()) + ", " + std::to_string(d.y()) + ", " +
                                 std::to_string(d.z()) + "]"});
   for (std::size_t i = 0; i < scene.objects.size(); ++i) {
@@ -258,13 +268,17 @@ std::vector<SceneOverride> overrides_for(const Setting& s, const SceneDesc& scen
   if (s.boundary) o.push_back({"walls[0].boundary", *s.boundary});
   if (s.buffer) o.push_back({"grid.buffer", std::to_string(*s.buffer)});
   if (s.contact) o.push_back({"simulation.contact", *s.contact});
-  if (s.wall_offset) {
-    const Vec3 shift = Vec3::Constant(*s.wall_offset).cwiseProduct(scene.grid.spacing()) / s.refine;
+  if (s.wall_offset || s.margin) {
+    const Vec3 cell = scene.grid.spacing() / s.refine;
+    const Vec3 shift = cell * s.wall_offset.value_or(0), grow = cell * s.margin.value_or(0);
     const auto point = [](const Vec3& x) {
       return "[" + text(x.x()) + ", " + text(x.y()) + ", " + text(x.z()) + "]";
     };
-    o.push_back({"grid.origin", point(scene.grid.origin - shift)});
-    o.push_back({"grid.max", point(scene.grid.max - shift)});
+    o.push_back({"grid.origin", point(scene.grid.origin - shift - grow)});
+    o.push_back({"grid.max", point(scene.grid.max - shift + grow)});
+    // The particles stay where they were: only the node rows move against the walls.
+    o.push_back(
+        {"grid.sampling_origin", point(scene.grid.sampling_origin.value_or(scene.grid.origin))});
   }
   return o;
 }

@@ -29,9 +29,13 @@ struct Setting {
   std::optional<double> friction_angle;  ///< friction_angle of every object, degrees (sand).
   std::optional<int> buffer;  ///< grid.buffer, cells.
   /// The grid moved by minus this many cells on every axis (origin and max alike), so every
-  /// wall lies this fraction of a cell further from the node row below it.
+  /// wall lies this fraction of a cell further from the node row below it; the particles are
+  /// sampled where they were (grid.sampling_origin).
   std::optional<double> wall_offset;
   std::optional<std::string> contact;  ///< simulation.contact: nodes or particles.
+  /// Cells added to the grid on every side, its node rows kept (so walls on the buffer's edge
+  /// can move against them).
+  std::optional<int> margin;
 };
 
 /// One run of a study: what was set and what came out.
