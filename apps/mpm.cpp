@@ -1,4 +1,4 @@
-// mpm: the command-line program. Every command lives in the library (engine/run/cli.cpp).
-#include "engine/run/cli.h"
+// mpm: the command-line program. Every command lives in the library (engine/cli/cli.cpp).
+#include "engine/cli/cli.h"
 
 int main(int argc, char** argv) { return mpm::run_cli(argc, argv); }

@@ -1,7 +1,5 @@
 #include "engine/io/bgeo.h"
 
-#include "engine/io/atomic_file.h"
-
 #include <bit>
 #include <cstdint>
 #include <fstream>
@@ -10,6 +8,8 @@
 #include <stdexcept>
 #include <string>
 #include <system_error>
+
+#include "engine/core/atomic_file.h"
 
 namespace mpm {
 

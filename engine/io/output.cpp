@@ -1,29 +1,26 @@
 #include "engine/io/output.h"
 
-#include "engine/parallel/comm.h"
-#include "engine/parallel/domain.h"
-#include "engine/parallel/frame_hdf5.h"
+#include <hdf5.h>
+#include <yaml-cpp/yaml.h>
 
-#include "engine/io/atomic_file.h"
-#include "engine/io/hdf5_handle.h"
-
-#include "engine/io/bgeo.h"
-#include "engine/io/ply.h"
-#include "engine/io/preview.h"
-#include "engine/io/surface.h"
-#include "engine/io/xdmf.h"
-
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <stdexcept>
 #include <type_traits>
 
-#include <hdf5.h>
-#include <algorithm>
-#include <cmath>
-
-#include <yaml-cpp/yaml.h>
+#include "engine/core/atomic_file.h"
+#include "engine/core/hdf5_handle.h"
+#include "engine/io/bgeo.h"
+#include "engine/io/ply.h"
+#include "engine/io/preview.h"
+#include "engine/io/surface.h"
+#include "engine/io/xdmf.h"
+#include "engine/parallel/comm.h"
+#include "engine/parallel/domain.h"
+#include "engine/parallel/frame_hdf5.h"
 
 namespace mpm {
 
@@ -490,7 +487,7 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
   ds.particles = {n};
   ds.comm_seconds = {0.0};
   ds.bytes = {0};
-  if (sim.domain()) ds = sim.domain()->stats();
+  if (const parallel::Domain* domain = parallel::domain_of(sim)) ds = domain->stats();
   y << YAML::Key << "ranks" << YAML::Value << ds.ranks;
   y << YAML::Key << "particles_per_rank" << YAML::Value << YAML::Flow << ds.particles;
   // Each rank wrote its own particles into the HDF5 frames, without the frame's gather.

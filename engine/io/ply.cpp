@@ -1,7 +1,5 @@
 #include "engine/io/ply.h"
 
-#include "engine/io/atomic_file.h"
-
 #include <bit>
 #include <charconv>
 #include <cstdint>
@@ -11,6 +9,8 @@
 #include <stdexcept>
 #include <string>
 #include <system_error>
+
+#include "engine/core/atomic_file.h"
 
 namespace mpm {
 

@@ -11,7 +11,7 @@
 #include <string>
 #include <system_error>
 
-#include "engine/io/atomic_file.h"
+#include "engine/core/atomic_file.h"
 #include "engine/scene/mesh.h"
 #include "engine/step/walls.h"
 

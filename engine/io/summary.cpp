@@ -1,9 +1,6 @@
 #include "engine/io/summary.h"
 
-#include "engine/core/reduce.h"
-
-#include "engine/io/atomic_file.h"
-#include "engine/parallel/comm.h"
+#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <charconv>
@@ -16,7 +13,9 @@
 #include <stdexcept>
 #include <system_error>
 
-#include <yaml-cpp/yaml.h>
+#include "engine/core/atomic_file.h"
+#include "engine/core/reduce.h"
+#include "engine/parallel/comm.h"
 
 namespace mpm {
 

@@ -13,8 +13,8 @@
 #include <map>
 #include <stdexcept>
 
+#include "engine/core/atomic_file.h"
 #include "engine/core/error.h"
-#include "engine/io/atomic_file.h"
 
 namespace mpm {
 

@@ -1,7 +1,6 @@
 #include "engine/io/xdmf.h"
 
-#include "engine/io/atomic_file.h"
-#include "engine/io/hdf5_handle.h"
+#include <hdf5.h>
 
 #include <algorithm>
 #include <charconv>
@@ -12,7 +11,8 @@
 #include <stdexcept>
 #include <system_error>
 
-#include <hdf5.h>
+#include "engine/core/atomic_file.h"
+#include "engine/core/hdf5_handle.h"
 
 namespace mpm {
 

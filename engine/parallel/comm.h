@@ -12,7 +12,7 @@ namespace mpm::parallel {
 
 /// MPI for the life of the program: MPI_Init on construction when started by a launcher
 /// (mpirun or srun set OMPI_COMM_WORLD_SIZE, PMI_SIZE or PMIX_RANK), MPI_Finalize on
-/// destruction. Only the command line (engine/run/cli.cpp) creates one.
+/// destruction. Only the command line (engine/cli/cli.cpp) creates one.
 class Session {
  public:
   /// Initialises MPI (no threads call MPI: MPI_THREAD_FUNNELED).

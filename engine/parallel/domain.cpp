@@ -435,4 +435,25 @@ void Domain::collect_counters(Simulation& sim) {
   stats_.halo_bytes = sum_all(halo_local_);
 }
 
+void Domain::set_failure(const std::string& why) {
+  if (failure_.empty()) failure_ = "rank " + std::to_string(rank()) + ", " + why;
+}
+
+double Domain::max_all(double x) const {
+  return parallel::max_all(x);
+}
+
+bool Domain::test_failure_requested() const {
+  return parallel::test_failure_requested();
+}
+
+void Domain::test_failure_point(std::size_t substeps) const {
+  parallel::test_failure_point(substeps);
+}
+
+Domain* domain_of(const Simulation& sim) {
+  // Domain is the only RankExchange (engine/step/exchange.h).
+  return static_cast<Domain*>(sim.domain());
+}
+
 }  // namespace mpm::parallel

@@ -9,14 +9,7 @@
 #include <vector>
 
 #include "engine/core/math.h"
-
-namespace mpm {
-class Simulation;
-struct Grid;
-struct AdvectStats;
-struct ContactSettings;
-struct ContactState;
-}  // namespace mpm
+#include "engine/step/exchange.h"
 
 namespace mpm::parallel {
 
@@ -50,7 +43,7 @@ struct DomainStats {
 };
 
 /// The run's split over ranks. Every method is collective: all ranks call it in the same order.
-class Domain {
+class Domain final : public RankExchange {
  public:
   /// The decomposition of `sim` over parallel::ranks() ranks (more than one). Throws SceneError
   /// (at grid.dims) when the grid's longest axis has fewer block layers than there are ranks.
@@ -58,23 +51,24 @@ class Domain {
 
   /// Stage halo_blocks, after the sort: each rank sends the list of its active blocks in the
   /// next rank's first layer (its ghost blocks) to that rank, which activates them too.
-  void share_ghost_blocks(Grid& grid);
+  void share_ghost_blocks(Grid& grid) override;
   /// Stage halo_sum, after particles_to_grid: ghost nodes' mass, momentum (and FLIP's force)
   /// go to their owner, which adds them in block order; the sender then zeroes its ghosts, so
   /// only the owner updates a node and counts wall work on it.
-  void add_ghost_sums(Grid& grid);
+  void add_ghost_sums(Grid& grid) override;
   /// Stage halo_velocity, before contact and grid_to_particles: the owner sends the mass and
   /// velocity (and FLIP's velocity before forces) of those nodes back to the ghosts.
-  void return_ghost_velocities(Grid& grid);
+  void return_ghost_velocities(Grid& grid) override;
   /// Stage contact: every rank's contacts (`local`, found on its own particles) and the
   /// nodes they reach go to rank 0, which solves them as one set (solve_contact,
   /// engine/step/contact.h); every rank then takes the new velocity of each node it stores.
   /// Returns the walls' work on rank 0, 0 on the others.
-  Real solve_contact(const ContactSettings& settings, Real dt, ContactState& local, Grid& grid);
+  Real solve_contact(const ContactSettings& settings, Real dt, ContactState& local,
+                     Grid& grid) override;
   /// Stage migrate, after advect: particles whose stencil base left the slab go to its owner.
-  void migrate(Simulation& sim);
+  void migrate(Simulation& sim) override;
   /// The advection statistics over all ranks (sum of counts, largest speed).
-  AdvectStats combine(const AdvectStats& local) const;
+  AdvectStats combine(const AdvectStats& local) const override;
 
   /// At the start of a run every rank holds the whole state (built or restored the same way):
   /// ranks other than 0 drop their particles, so the state is as after collect().
@@ -93,11 +87,15 @@ class Domain {
 
   /// Why a compute stage failed on this rank ("" if none): its later compute stages are then
   /// skipped, its exchanges still run, and run_frames stops every rank after the substep.
-  const std::string& failure() const { return failure_; }
-  /// Records this rank's first failure (a later one is dropped).
-  void set_failure(std::string why) {
-    if (failure_.empty()) failure_ = std::move(why);
-  }
+  const std::string& failure() const override { return failure_; }
+  /// Records this rank's first failure as "rank N, `why`" (a later one is dropped).
+  void set_failure(const std::string& why) override;
+  /// parallel::max_all.
+  double max_all(double x) const override;
+  /// parallel::test_failure_requested.
+  bool test_failure_requested() const override;
+  /// parallel::test_failure_point.
+  void test_failure_point(std::size_t substeps) const override;
 
   /// The current slabs.
   const Slabs& slabs() const { return slabs_; }
@@ -115,5 +113,8 @@ class Domain {
   double imbalance_sum_ = 0;
   std::uint64_t halo_local_ = 0;  // halo bytes this rank sent
 };
+
+/// The domain `sim` was split with (Simulation::set_domain), or nullptr for a one-rank run.
+Domain* domain_of(const Simulation& sim);
 
 }  // namespace mpm::parallel

@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
+#include "engine/core/atomic_file.h"
+#include "engine/core/hdf5_handle.h"
 #include "engine/core/particles.h"
-#include "engine/io/atomic_file.h"
-#include "engine/io/hdf5_handle.h"
 #include "engine/parallel/comm.h"
 
 #ifdef H5_HAVE_PARALLEL

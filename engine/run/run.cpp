@@ -107,7 +107,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
   RunResult result;
   result.dt_min = std::numeric_limits<Real>::infinity();
   const bool adaptive = sim.scene().simulation.cfl.has_value();
-  if (sim.domain()) sim.domain()->keep_root_only(sim);
+  if (parallel::Domain* domain = parallel::domain_of(sim)) domain->keep_root_only(sim);
   result.energy_start = result.energy_max = over_ranks(sim, sim.total_energy());
   // The dt to suggest if the run goes wrong: the CFL bound at cfl 0.5, from the last healthy
   // state seen at a frame end.
@@ -133,7 +133,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
   // slab; each frame end checks energy and inversion with reductions over the slabs, then
   // gathers the state on rank 0, which alone calls the observers (other ranks get none);
   // rank 0's status is then every rank's.
-  parallel::Domain* domain = sim.domain();
+  parallel::Domain* domain = parallel::domain_of(sim);
   auto agree = [&] {
     if (!domain) return;
     parallel::broadcast(result.status);

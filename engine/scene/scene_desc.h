@@ -8,7 +8,6 @@
 #include <vector>
 
 #include "engine/core/error.h"
-#include "engine/step/kernels.h"
 #include "engine/core/math.h"
 #include "materials/material.h"
 
@@ -17,6 +16,9 @@ namespace mpm {
 /// How particle velocities are carried to and from the grid (mls: APIC's transfer with the
 /// stress folded into the affine momentum, Hu et al. 2018).
 enum class Transfer { apic, pic, flip, mls };
+
+/// Which B-spline carries particle data to the grid and back (engine/step/kernels.h).
+enum class Kernel { linear, quadratic, cubic };
 
 /// What a wall does to grid velocities that point into it.
 enum class Boundary {

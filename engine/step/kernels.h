@@ -6,11 +6,9 @@
 #include <cmath>
 
 #include "engine/core/math.h"
+#include "engine/scene/scene_desc.h"
 
 namespace mpm {
-
-/// Which B-spline carries particle data to the grid and back.
-enum class Kernel { linear, quadratic, cubic };
 
 /// Weights and gradients of the N x N x N grid nodes around one particle.
 template <int N>

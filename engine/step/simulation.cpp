@@ -1,19 +1,15 @@
 #include "engine/step/simulation.h"
 
-#include "engine/core/reduce.h"
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <span>
 #include <utility>
 
-#include <unistd.h>
-
-#include <cstdio>
-
-#include "engine/parallel/comm.h"
-#include "engine/parallel/domain.h"
+#include "engine/core/reduce.h"
 #include "engine/scene/mesh.h"
 #include "engine/scene/sampling.h"
 #include "engine/step/reorder.h"
@@ -195,8 +191,7 @@ void Simulation::build_stages() {
         try {
           fn(dt);
         } catch (const std::exception& e) {
-          domain_->set_failure("rank " + std::to_string(parallel::rank()) + ", stage " + name +
-                               ": " + e.what());
+          domain_->set_failure("stage " + name + ": " + e.what());
         }
       };
     stages_.push_back({std::move(name), std::move(fn), 0.0});
@@ -320,8 +315,8 @@ void Simulation::build_stages() {
           m.material->apply_plasticity_step(slice(particles_.F, m), dt);
     });
   // The run's checks see every rank's advection; particles move to their new slab's rank.
-  if (domain_ && parallel::test_failure_requested())
-    add("test_failure", [this](Real) { parallel::test_failure_point(substeps_ + 1); });
+  if (domain_ && domain_->test_failure_requested())
+    add("test_failure", [this](Real) { domain_->test_failure_point(substeps_ + 1); });
   if (domain_)
     exchange("migrate", [this](Real) {
       const AdvectStats local = last_advect_;
@@ -330,7 +325,7 @@ void Simulation::build_stages() {
     });
 }
 
-void Simulation::set_domain(std::shared_ptr<parallel::Domain> domain) {
+void Simulation::set_domain(std::shared_ptr<RankExchange> domain) {
   domain_ = std::move(domain);
   build_stages();
 }
@@ -364,9 +359,9 @@ Real Simulation::cfl_bound(Real cfl) const {
   }
   Real speed = max_speed();
   if (domain_) {
-    c = parallel::max_all(c);
-    nu = parallel::max_all(nu);
-    speed = parallel::max_all(speed);
+    c = domain_->max_all(c);
+    nu = domain_->max_all(nu);
+    speed = domain_->max_all(speed);
   }
   // dt <= C h / (c + |v|max) (references.md, "Time step"); with viscosity also the explicit
   // diffusion bound dt <= h^2 / (6 nu) (docs/materials.md, "Water").

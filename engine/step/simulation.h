@@ -12,16 +12,13 @@
 #include "engine/scene/scene_desc.h"
 #include "engine/step/colliders.h"
 #include "engine/step/contact.h"
+#include "engine/step/exchange.h"
 #include "engine/step/grid.h"
 #include "engine/step/transfer.h"
 #include "engine/step/walls.h"
 #include "materials/registry.h"
 
 namespace mpm {
-
-namespace parallel {
-class Domain;
-}
 
 /// One object after sampling: a contiguous range of particles.
 struct ObjectInfo {
@@ -124,10 +121,10 @@ class Simulation {
   Real kinetic_energy() const;
 
   /// The split over MPI ranks (engine/parallel/domain.h), or nullptr for a one-rank run.
-  parallel::Domain* domain() const { return domain_.get(); }
+  RankExchange* domain() const { return domain_.get(); }
   /// Splits the run with `domain` (nullptr: one rank) and rebuilds the stage list, which then
   /// holds the exchange stages (halo_blocks, halo_sum, halo_velocity, migrate).
-  void set_domain(std::shared_ptr<parallel::Domain> domain);
+  void set_domain(std::shared_ptr<RankExchange> domain);
   /// Replaces the particles with `p`, whose objects lie contiguous in scene order with
   /// `counts[o]` particles each, and object o's material state with `states[o]`
   /// (state_stride(o) values per particle); each material group is rebuilt for its new count.
@@ -170,7 +167,7 @@ class Simulation {
   std::size_t state_ = 0;                          // bumped by every change of state
   mutable std::size_t energy_state_ = SIZE_MAX;    // the state range_energy_ was computed for
   mutable std::vector<Real> range_energy_;         // cache of range_elastic_energies()
-  std::shared_ptr<parallel::Domain> domain_;
+  std::shared_ptr<RankExchange> domain_;
   /// Builds object o's material group for a count of particles (replace_particles).
   std::vector<std::function<std::unique_ptr<MaterialGroup>(std::size_t)>> group_factories_;
   std::vector<std::size_t> state_stride_;

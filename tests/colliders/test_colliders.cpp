@@ -1,21 +1,20 @@
 // Solid colliders (mesh, sphere and vdb walls): bodies stay outside them, slide down a mesh
 // ramp at Coulomb's rate, are carried by a spinning collider, and a VDB sphere acts like the
 // analytic one. Bad collider input exits with code 2 and says where.
-#include <catch2/catch.hpp>
+#include <openvdb/io/File.h>
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/LevelSetSphere.h>
+#include <sys/wait.h>
 
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
-#include <sys/wait.h>
-
-#include <openvdb/io/File.h>
-#include <openvdb/openvdb.h>
-#include <openvdb/tools/LevelSetSphere.h>
 
 #include "engine/io/preview.h"
 #include "engine/run/run.h"
-#include "engine/scene/validate.h"
+#include "engine/step/validate.h"
 #include "support/helpers.h"
 
 using namespace mpm;

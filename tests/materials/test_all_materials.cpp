@@ -105,7 +105,7 @@ TEST_CASE("every material: `mpm materials` lists every key with unit, default an
       const std::size_t row = listing.find("\n  " + p.name + " ", at);
       REQUIRE(row != std::string::npos);
       const std::string line = listing.substr(row + 1, listing.find('\n', row + 1) - row - 1);
-      // Columns as printed by engine/run/cli.cpp: "  %-22s %-8s %-10s %-16s %s".
+      // Columns as printed by engine/cli/cli.cpp: "  %-22s %-8s %-10s %-16s %s".
       const auto column = [&](std::size_t from, std::size_t width) {
         std::string w = line.substr(std::min(from, line.size()), width);
         w.erase(w.find_last_not_of(' ') + 1);

@@ -1,11 +1,10 @@
 // The scene loader: good scenes load; bad ones fail with file, line and key.
-#include <catch2/catch.hpp>
-
 #include <algorithm>
+#include <catch2/catch.hpp>
 #include <cctype>
 #include <sstream>
 
-#include "engine/scene/validate.h"
+#include "engine/step/validate.h"
 #include "support/helpers.h"
 
 using namespace mpm;

@@ -1,5 +1,7 @@
 #include "engine/tools/validation/study.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -7,11 +9,9 @@
 #include <stdexcept>
 #include <utility>
 
-#include <omp.h>
-
-#include "engine/tools/child_process.h"
+#include "engine/core/atomic_file.h"
 #include "engine/core/error.h"
-#include "engine/io/atomic_file.h"
+#include "engine/tools/child_process.h"
 
 namespace mpm::validation {
 

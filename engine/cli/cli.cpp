@@ -1,5 +1,7 @@
-#include "engine/run/cli.h"
+#include "engine/cli/cli.h"
 
+#include <omp.h>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -13,23 +15,20 @@
 #include <string>
 #include <vector>
 
-#include <omp.h>
-#include <spdlog/spdlog.h>
-
-#include "engine/tools/bench.h"
-#include "engine/tools/roofline.h"
-#include "engine/tools/validation/study.h"
-#include "engine/scene/load_scene.h"
+#include "engine/core/version.h"
 #include "engine/io/output.h"
+#include "engine/io/summary.h"
 #include "engine/io/surface.h"
 #include "engine/parallel/comm.h"
 #include "engine/parallel/domain.h"
 #include "engine/run/progress.h"
 #include "engine/run/run.h"
+#include "engine/scene/load_scene.h"
 #include "engine/step/simulation.h"
-#include "engine/io/summary.h"
-#include "engine/scene/validate.h"
-#include "engine/core/version.h"
+#include "engine/step/validate.h"
+#include "engine/tools/bench.h"
+#include "engine/tools/roofline.h"
+#include "engine/tools/validation/study.h"
 #include "materials/plugin.h"
 
 namespace {

@@ -1,4 +1,4 @@
-#include "engine/scene/validate.h"
+#include "engine/step/validate.h"
 
 #include <unistd.h>
 
