@@ -508,17 +508,17 @@ int cmd_run(const Args& args) {
       sim->domain() ? mpm::parallel::sum_all(static_cast<std::uint64_t>(sim->particles().size()))
                     : sim->particles().size();
   const double steps = static_cast<double>(particles) * sim->substeps();
-  if (!root) return r.status == "ok" ? mpm::kExitOk : mpm::kExitRunFailed;
-  std::printf("%s: %s, %zu particles, %d frames, %zu substeps in %.1f s (%.2fM particle-steps/s; "
-              "%.2fM in the substep loop); %s%s\n",
-              args.scene.c_str(), r.status.c_str(), particles, r.frames_done,
-              sim->substeps(), r.wall_seconds,
-              r.wall_seconds > 0 ? steps / r.wall_seconds / 1e6 : 0.0,
-              r.loop_seconds > 0 ? steps / r.loop_seconds / 1e6 : 0.0, written.c_str(),
-              r.warnings.empty() ? ""
-              : args.command == "run" ? " (with warnings: see the log and report.yaml)"
-                                      : " (with warnings: see the log)");
-  if (r.status != "ok") {
+  if (!root) return r.status == mpm::RunStatus::ok ? mpm::kExitOk : mpm::kExitRunFailed;
+  std::printf(
+      "%s: %s, %zu particles, %d frames, %zu substeps in %.1f s (%.2fM particle-steps/s; "
+      "%.2fM in the substep loop); %s%s\n",
+      args.scene.c_str(), mpm::status_name(r.status), particles, r.frames_done, sim->substeps(),
+      r.wall_seconds, r.wall_seconds > 0 ? steps / r.wall_seconds / 1e6 : 0.0,
+      r.loop_seconds > 0 ? steps / r.loop_seconds / 1e6 : 0.0, written.c_str(),
+      r.warnings.empty()      ? ""
+      : args.command == "run" ? " (with warnings: see the log and report.yaml)"
+                              : " (with warnings: see the log)");
+  if (r.status != mpm::RunStatus::ok) {
     std::fprintf(stderr, "error: %s\n", r.message.c_str());
     return mpm::kExitRunFailed;
   }

@@ -439,7 +439,7 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
   if (parallel::rank() != 0) return;
   YAML::Emitter y;
   y << YAML::BeginMap;
-  y << YAML::Key << "status" << YAML::Value << r.status;
+  y << YAML::Key << "status" << YAML::Value << status_name(r.status);
   if (!r.message.empty()) y << YAML::Key << "message" << YAML::Value << r.message;
   if (r.instability) {
     const Instability& u = *r.instability;

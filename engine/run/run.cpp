@@ -99,6 +99,20 @@ void check_inversion(const Simulation& sim, int frame, std::vector<char>& warned
 
 }  // namespace
 
+const char* status_name(RunStatus s) {
+  switch (s) {
+    case RunStatus::ok:
+      return "ok";
+    case RunStatus::unstable:
+      return "unstable";
+    case RunStatus::error:
+      return "error";
+    case RunStatus::interrupted:
+      return "interrupted";
+  }
+  return "?";
+}
+
 RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
                      const std::vector<Observer*>& observers, const std::atomic<bool>* stop,
                      int first_frame) {
@@ -118,7 +132,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
     why.frame = frame;
     why.substep = sim.substeps();
     why.suggested_dt = suggested_dt;
-    result.status = "unstable";
+    result.status = RunStatus::unstable;
     char buf[160];
     std::snprintf(buf, sizeof buf, " (frame %d, substep %zu%s%s); try dt <= %.3g s or cfl <= 0.5",
                   frame, why.substep, why.object.empty() ? "" : ", object ",
@@ -136,7 +150,9 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
   parallel::Domain* domain = parallel::domain_of(sim);
   auto agree = [&] {
     if (!domain) return;
-    parallel::broadcast(result.status);
+    int status = static_cast<int>(result.status);
+    parallel::broadcast(status);
+    result.status = static_cast<RunStatus>(status);
     parallel::broadcast(result.message);
   };
   // An observer's exception ends the run with status error: caught here, not by the outer
@@ -145,7 +161,8 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
     try {
       call();
     } catch (const std::exception& e) {
-      if (result.status == "ok") result.status = "error", result.message = e.what();
+      if (result.status == RunStatus::ok)
+        result.status = RunStatus::error, result.message = e.what();
     }
   };
   // The frame's gather to rank 0 only when an observer there reads every particle (rank 0's
@@ -161,7 +178,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
     result.observer_seconds += seconds_since(t0);
     agree();
     result.frames_done = first_frame - 1;
-    for (int f = first_frame; f <= frames && result.status == "ok"; ++f) {
+    for (int f = first_frame; f <= frames && result.status == RunStatus::ok; ++f) {
       if (domain) domain->distribute(sim);
       const Real frame_end = f * frame_dt;
       // A whole number of equal substeps fills the frame, each no larger than the bound.
@@ -192,7 +209,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
           // A stage that failed on some rank: every rank stops here with its cause.
           const std::string failure = parallel::first_nonempty(domain->failure());
           if (!failure.empty()) {
-            result.status = "error";
+            result.status = RunStatus::error;
             result.message = failure + " (frame " + std::to_string(f) + ", substep " +
                              std::to_string(sim.substeps()) + "); the last complete frame is " +
                              std::to_string(f - 1);
@@ -218,18 +235,18 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
           for (Observer* o : observers) o->on_substep(sim, f);
         });
         result.observer_seconds += seconds_since(t0);
-        if (domain && parallel::any_all(result.status != "ok")) {
+        if (domain && parallel::any_all(result.status != RunStatus::ok)) {
           agree();
-          if (result.status == "ok") result.status = "error";
+          if (result.status == RunStatus::ok) result.status = RunStatus::error;
           break;
         }
-        if (result.status != "ok") break;
+        if (result.status != RunStatus::ok) break;
       }
       if (steps.substeps == 0) steps.dt_min = 0;
       result.steps.push_back(steps);
       // The frame's checks run on each rank's own particles, with reductions (the status is
       // the same on every rank here: each way out of the substep loop is agreed).
-      if (result.status == "ok") {
+      if (result.status == RunStatus::ok) {
         // Energy may only grow by the work moving walls and colliders do on the bodies.
         t0 = clock::now();
         const Real wall_work = over_ranks(sim, sim.wall_work());
@@ -247,7 +264,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
           fail({buf, ""}, f);
         }
         agree();
-        if (result.status == "ok") {
+        if (result.status == RunStatus::ok) {
           check_inversion(sim, f, inversion_warned, result.warnings);
           suggested_dt = sim.cfl_bound(cfl);
         }
@@ -255,7 +272,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       }
       // Collective observers (the summary) reduce over the slabs before the gather; the others
       // (frame files, checkpoint, progress) still read every particle on rank 0 after it.
-      if (domain && result.status == "ok") {
+      if (domain && result.status == RunStatus::ok) {
         t0 = clock::now();
         sim.set_time(frame_end);
         notify([&] {
@@ -267,7 +284,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       }
       if (domain && gather) domain->collect(sim);
       else if (domain) domain->collect_counters(sim);
-      if (result.status != "ok") break;
+      if (result.status != RunStatus::ok) break;
       sim.set_time(frame_end);
       result.frames_done = f;
       t0 = clock::now();
@@ -281,9 +298,9 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       agree();
       // A stop request ends the run at a frame end, with the frame written: the output's
       // on_finish then writes this frame's checkpoint, so nothing computed is lost.
-      const bool stopping = stop && stop->load() && f < frames && result.status == "ok";
+      const bool stopping = stop && stop->load() && f < frames && result.status == RunStatus::ok;
       if (domain ? parallel::any_all(stopping) : stopping) {
-        result.status = "interrupted";
+        result.status = RunStatus::interrupted;
         result.message = "stopped by a signal after frame " + std::to_string(f) + " (substep " +
                          std::to_string(sim.substeps()) +
                          "), the last complete frame; --resume continues from it";
@@ -291,7 +308,7 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
       }
     }
   } catch (const std::exception& e) {
-    result.status = "error";
+    result.status = RunStatus::error;
     result.message = e.what();
     if (domain) {
       // A failure outside the compute stages (an exchange, the frame's gather or scatter):
@@ -316,7 +333,8 @@ RunResult run_frames(Simulation& sim, int frames, Real frame_dt,
     try {
       o->on_finish(sim, result);
     } catch (const std::exception& e) {
-      if (result.status == "ok") result.status = "error", result.message = e.what();
+      if (result.status == RunStatus::ok)
+        result.status = RunStatus::error, result.message = e.what();
     }
   }
   return result;

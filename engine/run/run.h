@@ -27,9 +27,16 @@ struct Instability {
   Real suggested_dt = 0;    ///< dt the CFL bound (cfl 0.5) suggests, s.
 };
 
+/// How a run ended: every frame done, stopped by the instability check, by an error, or by a
+/// signal (written as status_name in report.yaml).
+enum class RunStatus { ok, unstable, error, interrupted };
+
+/// The name report.yaml and the command line use for `s`: ok, unstable, error, interrupted.
+const char* status_name(RunStatus s);
+
 /// How a run ended.
 struct RunResult {
-  std::string status = "ok";  ///< ok | unstable | error | interrupted.
+  RunStatus status = RunStatus::ok;  ///< How it ended.
   std::string message;        ///< Why, when not ok.
   std::optional<Instability> instability;  ///< Details when status is unstable.
   std::vector<FrameSteps> steps;           ///< Substep sizes per frame.

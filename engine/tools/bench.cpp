@@ -79,7 +79,8 @@ BenchResult run_whole_scene(const std::string& name, bool simd) {
     throw;
   }
   std::filesystem::remove_all(out);
-  if (run.status != "ok") throw std::runtime_error(name + " ended " + run.status);
+  if (run.status != RunStatus::ok)
+    throw std::runtime_error(name + " ended " + status_name(run.status));
   BenchResult r;
   r.name = name;
   r.particles = static_cast<long>(sim->particles().size());

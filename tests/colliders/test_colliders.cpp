@@ -60,7 +60,7 @@ double run_and_track_depth(Simulation& sim, int frames, std::size_t c = 0) {
   } depth;
   depth.c = c;
   const RunResult r = run_frames(sim, frames, sim.scene().simulation.frame_dt, {&depth});
-  REQUIRE(r.status == "ok");
+  REQUIRE(r.status == RunStatus::ok);
   return depth.worst;
 }
 
@@ -145,7 +145,7 @@ TEST_CASE("a block slides down a tilted mesh ramp at g (sin a - mu cos a)", "[co
       return Vec3(c / static_cast<double>(sim->particles().size()));
     };
     const Vec3 c0 = centroid();
-    REQUIRE(run_frames(*sim, 10, 0.05, {}).status == "ok");
+    REQUIRE(run_frames(*sim, 10, 0.05, {}).status == RunStatus::ok);
     const double slid = (centroid() - c0).dot(down);
     const double exact = 0.5 * g * (std::sin(a) - mu * std::cos(a)) * t_end * t_end;
     INFO("slid " << slid << " m, exact " << exact << " m");
@@ -180,7 +180,7 @@ TEST_CASE("a spinning collider carries sticky particles at w x (x - c)", "[colli
         "walls:\n" + collider + "    boundary: sticky\n    angular_velocity: [0, 0, 4]\n";
     const SceneDesc scene = test::scene_from(yaml);
     auto sim = Simulation::create(scene, builtin_registry());
-    REQUIRE(run_frames(*sim, 6, 0.05, {}).status == "ok");  // 0.3 s: 1.2 rad, 69 degrees
+    REQUIRE(run_frames(*sim, 6, 0.05, {}).status == RunStatus::ok);  // 0.3 s: 1.2 rad, 69 degrees
     const Collider& col = sim->colliders()[0];
     double worst_phi = -1e9, worst_v = 0;
     const Particles& p = sim->particles();

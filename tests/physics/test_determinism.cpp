@@ -70,7 +70,7 @@ std::unique_ptr<Simulation> run_collision(int threads, int reorder_every, bool s
   auto sim = Simulation::create(scene, builtin_registry());
   REQUIRE(sim->objects()[0].count > static_cast<std::size_t>(kParallelMinItems));
   const RunResult r = run_frames(*sim, 4, scene.simulation.frame_dt, {});
-  REQUIRE(r.status == "ok");
+  REQUIRE(r.status == RunStatus::ok);
   REQUIRE(sim->substeps() >= 200);
   return sim;
 }

@@ -46,7 +46,7 @@ TEST_CASE("free fall matches x0 + v0 t + g t^2/2 + g t dt/2 at three dt", "[phys
         const std::vector<Vec3> x0 = sim->particles().x;
         const int frames = 4;
         const RunResult r = run_frames(*sim, frames, scene.simulation.frame_dt, {});
-        REQUIRE(r.status == "ok");
+        REQUIRE(r.status == RunStatus::ok);
         const double t = frames * scene.simulation.frame_dt;
         const double dt_taken = t / sim->substeps();
         CHECK(dt_taken == Approx(dt));

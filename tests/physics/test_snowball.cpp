@@ -110,7 +110,7 @@ Impact run_scene(const std::string& text) {
   const SceneDesc scene = test::scene_from(text);
   auto sim = Simulation::create(scene, builtin_registry());
   const RunResult r = run_frames(*sim, scene.simulation.frames, scene.simulation.frame_dt, {});
-  REQUIRE(r.status == "ok");
+  REQUIRE(r.status == RunStatus::ok);
   Impact out;
   out.particles = sim->particles().size();
   out.fragments = test::fragment_sizes(sim->particles().x, sim->grid().h.minCoeff());
@@ -220,7 +220,7 @@ TEST_CASE("the paper-parameter snowball with hard clumps shatters against a post
   const SceneDesc scene = load_scene(test::source_dir() / "scenes/snowball_paper.yaml", registry);
   auto sim = Simulation::create(scene, registry);
   const RunResult r = run_frames(*sim, 4, scene.simulation.frame_dt, {});
-  REQUIRE(r.status == "ok");
+  REQUIRE(r.status == RunStatus::ok);
   const auto& x = sim->particles().x;
   const auto& v = sim->particles().v;
   const auto& Jp = dynamic_cast<const materials::SnowGroup&>(*sim->materials()[0].material).Jp();

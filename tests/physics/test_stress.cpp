@@ -77,8 +77,8 @@ Outcome run_stress(const std::string& name, std::optional<bool> simd = std::null
 
 /// The assertions every hard case shares.
 void check_common(const Outcome& o) {
-  INFO("status " << o.result.status << ": " << o.result.message);
-  CHECK(o.result.status == "ok");
+  INFO("status " << status_name(o.result.status) << ": " << o.result.message);
+  CHECK(o.result.status == RunStatus::ok);
   CHECK(o.watch.finite);
   // The walls (and the grid's own boundary) kept every particle in the interior: no particle
   // ever had to be clamped back.

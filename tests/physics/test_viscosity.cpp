@@ -73,7 +73,7 @@ double decay_rate(double h, const std::string& transfer, std::size_t* substeps =
   }
   ModeProbe probe;
   const RunResult r = run_frames(*sim, scene.simulation.frames, scene.simulation.frame_dt, {&probe});
-  REQUIRE(r.status == "ok");
+  REQUIRE(r.status == RunStatus::ok);
   if (substeps) *substeps = sim->substeps();
   double st = 0, sl = 0, stt = 0, stl = 0;
   const double n = static_cast<double>(probe.amplitude.size());

@@ -146,7 +146,7 @@ Run run_two_cubes(const std::string& name, int frames, std::vector<Observer*> ex
   std::vector<Observer*> observers{&writer};
   observers.insert(observers.end(), extra.begin(), extra.end());
   const RunResult result = run_frames(*r.sim, frames, scene.simulation.frame_dt, observers);
-  REQUIRE(result.status == "ok");
+  REQUIRE(result.status == RunStatus::ok);
   r.summary = writer.summary();
   return r;
 }
@@ -276,7 +276,7 @@ TEST_CASE("the summary file is rewritten after every frame", "[summary]") {
   REQUIRE(writer.file() == dir / "summary.yaml");
   // The watcher runs after the writer, so the file must already hold frames 0..f.
   const RunResult r = run_frames(*sim, 4, scene.simulation.frame_dt, {&writer, &watcher});
-  REQUIRE(r.status == "ok");
+  REQUIRE(r.status == RunStatus::ok);
   CHECK(watcher.frames_on_disk == std::vector<std::size_t>{2, 3, 4, 5});
   CHECK_FALSE(std::filesystem::exists(dir / "summary.yaml.tmp"));
 }
@@ -286,7 +286,7 @@ TEST_CASE("a resumed run keeps the earlier frames of its summary", "[summary]") 
   // The same scene run to frame 3 without observers, as a checkpoint would restore it.
   const SceneDesc scene = test::scene_from(two_cubes(5));
   auto sim = Simulation::create(scene, builtin_registry());
-  REQUIRE(run_frames(*sim, 3, scene.simulation.frame_dt, {}).status == "ok");
+  REQUIRE(run_frames(*sim, 3, scene.simulation.frame_dt, {}).status == RunStatus::ok);
   SummaryWriter resumed(full.dir);
   resumed.on_start(*sim, 5);
   RunSummary expected = full.summary;
@@ -791,7 +791,7 @@ TEST_CASE("a run whose particles invert ends ok but warns, naming the object", "
     FrameOutput output(dir, scene.output);
     const RunResult r = run_frames(*sim, scene.simulation.frames, scene.simulation.frame_dt,
                                    {&output});
-    CHECK(r.status == "ok");
+    CHECK(r.status == RunStatus::ok);
     // Whether any particle ends inverted, seen from the particles themselves.
     bool inverted = false;
     const Particles& p = sim->particles();
@@ -836,7 +836,7 @@ TEST_CASE("summaries and energies are bit-identical for 1 and 2 threads",
   auto sim = Simulation::create(scene, builtin_registry());
   REQUIRE(sim->objects()[0].count > 2 * static_cast<std::size_t>(kParallelMinItems));
   const RunResult r = run_frames(*sim, 3, scene.simulation.frame_dt, {});
-  REQUIRE(r.status == "ok");
+  REQUIRE(r.status == RunStatus::ok);
   const int threads = omp_get_max_threads();
   auto measure = [&](int n) {
     omp_set_num_threads(n);

@@ -811,7 +811,7 @@ Outcome run_case(const Case& c, const std::vector<SceneOverride>& overrides) {
   const RunResult r = run_frames(*sim, scene.simulation.frames, scene.simulation.frame_dt,
                                  {probe.get()});
   Outcome out;
-  out.status = r.status;
+  out.status = status_name(r.status);
   out.particles = sim->particles().size();
   out.substeps = sim->substeps();
   out.seconds = r.loop_seconds;
