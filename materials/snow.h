@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "engine/core/hash.h"
 #include "engine/core/reduce.h"
 #include "materials/corotated.h"
 #include "materials/svd.h"
@@ -73,16 +74,11 @@ struct SnowPlasticity {
     return 1 + initial_Jp_spread * (2 * unit_hash(index * 0x9e3779b97f4a7c15ull) - 1);
   }
 
-  /// The splitmix64 finaliser of z + a constant: a well-mixed 64-bit hash.
-  static std::uint64_t mix(std::uint64_t z) {
-    z += 0x632be59bd9b4e019ull;
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-  }
+  /// engine/core/hash.h's splitmix64, with an increment of its own.
+  static std::uint64_t mix(std::uint64_t z) { return splitmix64(z, 0x632be59bd9b4e019ull); }
 
   /// A uniform number in [0, 1) from a 64-bit key.
-  static Real unit_hash(std::uint64_t z) { return static_cast<Real>(mix(z) >> 11) * 0x1.0p-53; }
+  static Real unit_hash(std::uint64_t z) { return unit_from_bits(mix(z)); }
 
   /// Value noise in [-1, 1] at u (in lattice units): uniform values at the integer lattice
   /// points, from a hash of (seed, i, j, k), blended with the smoothstep weights 3t^2 - 2t^3

@@ -3,22 +3,11 @@
 #include <algorithm>
 #include <cmath>
 
+#include "engine/core/hash.h"
+
 namespace mpm {
 
-namespace {
-
-std::uint64_t mix(std::uint64_t z) {
-  z += 0x9e3779b97f4a7c15ull;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-  return z ^ (z >> 31);
-}
-
-}  // namespace
-
-double hash_uniform(std::uint64_t key) {
-  return static_cast<double>(mix(key) >> 11) * 0x1.0p-53;
-}
+double hash_uniform(std::uint64_t key) { return unit_from_bits(splitmix64(key)); }
 
 std::vector<Vec3> sample_inside(const TriangleMesh& mesh, const GridDesc& gd, int per_cell, bool regular,
                                 std::uint64_t seed, std::uint64_t stream) {
@@ -37,7 +26,7 @@ std::vector<Vec3> sample_inside(const TriangleMesh& mesh, const GridDesc& gd, in
   if ((hi - lo).minCoeff() < 0) return {};
   const int strata = static_cast<int>(std::lround(std::cbrt(per_cell)));
   const bool stratified = strata * strata * strata == per_cell;
-  const std::uint64_t base_key = mix(mix(seed) ^ (stream * 0x632be59bd9b4e019ull));
+  const std::uint64_t base_key = splitmix64(splitmix64(seed) ^ (stream * 0x632be59bd9b4e019ull));
 
   // One list per x slice, filled in parallel and joined in order.
   const int nx = hi.x() - lo.x() + 1;
@@ -51,7 +40,7 @@ std::vector<Vec3> sample_inside(const TriangleMesh& mesh, const GridDesc& gd, in
             (static_cast<std::uint64_t>(i) * gd.dims.y() + j) * gd.dims.z() + k;
         const Vec3 corner = origin + Vec3(i, j, k).cwiseProduct(h);
         for (int s = 0; s < per_cell; ++s) {
-          const std::uint64_t key = mix(base_key ^ mix(cell * 1024 + s));
+          const std::uint64_t key = splitmix64(base_key ^ splitmix64(cell * 1024 + s));
           Vec3 u(hash_uniform(key), hash_uniform(key + 1), hash_uniform(key + 2));
           if (stratified) {
             const Vec3 sub(s / (strata * strata), (s / strata) % strata, s % strata);
