@@ -1,13 +1,15 @@
 #include "engine/scene/load_scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
-#include <algorithm>
 #include <fstream>
 #include <initializer_list>
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
+#include <utility>
 
 #include "engine/scene/param_reader.h"
 #include "materials/plugin.h"
@@ -469,17 +471,33 @@ YAML::Node parse_yaml(const std::string& text, const std::string& fname) {
 
 }  // namespace
 
+namespace {
+
+/// Every output format by its name in scenes and on the command line.
+constexpr std::pair<std::string_view, Format> kFormats[] = {
+    {"hdf5", Format::hdf5}, {"bgeo", Format::bgeo}, {"ply", Format::ply},
+    {"png", Format::png},   {"mesh", Format::mesh}, {"vdb", Format::vdb}};
+
+}  // namespace
+
 std::optional<Format> format_from_name(const std::string& name) {
-  if (name == "hdf5") return Format::hdf5;
-  if (name == "bgeo") return Format::bgeo;
-  if (name == "ply") return Format::ply;
-  if (name == "png") return Format::png;
-  if (name == "mesh") return Format::mesh;
-  if (name == "vdb") return Format::vdb;
+  for (const auto& [n, f] : kFormats)
+    if (n == name) return f;
   return std::nullopt;
 }
 
-const char* format_names() { return "hdf5, bgeo, ply, png, mesh or vdb"; }
+const char* format_names() {
+  static const std::string names = [] {
+    std::string s;
+    const std::size_t n = std::size(kFormats);
+    for (std::size_t i = 0; i < n; ++i) {
+      s += i == 0 ? "" : i + 1 == n ? " or " : ", ";
+      s += kFormats[i].first;
+    }
+    return s;
+  }();
+  return names.c_str();
+}
 
 SceneOverride parse_override(const std::string& text) {
   const std::size_t eq = text.find('=');
