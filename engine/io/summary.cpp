@@ -19,6 +19,37 @@
 
 namespace mpm {
 
+namespace {
+
+/// One per-object quantity of a summary after its name and particle count: its key, the
+/// member that holds it (a number or a vector) and the tolerance `mpm compare` applies. The
+/// writer, the reader and the comparison all walk this one list, in its order.
+struct Quantity {
+  const char* name;
+  double ObjectSummary::*number = nullptr;
+  Vec3 ObjectSummary::*vector = nullptr;
+  double Tolerances::*tolerance;
+  /// Components: 1 for a number, 3 for a vector.
+  int components() const { return vector ? 3 : 1; }
+  /// Component c of the quantity in `o`.
+  double get(const ObjectSummary& o, int c) const { return vector ? (o.*vector)[c] : o.*number; }
+};
+
+const Quantity kQuantities[] = {
+    {"centroid", nullptr, &ObjectSummary::centroid, &Tolerances::centroid},
+    {"bbox_min", nullptr, &ObjectSummary::bbox_min, &Tolerances::bbox},
+    {"bbox_max", nullptr, &ObjectSummary::bbox_max, &Tolerances::bbox},
+    {"mean_speed", &ObjectSummary::mean_speed, nullptr, &Tolerances::speed},
+    {"max_speed", &ObjectSummary::max_speed, nullptr, &Tolerances::speed},
+    {"kinetic_energy", &ObjectSummary::kinetic_energy, nullptr, &Tolerances::energy},
+    {"elastic_energy", &ObjectSummary::elastic_energy, nullptr, &Tolerances::energy},
+    {"gravitational_energy", &ObjectSummary::gravitational_energy, nullptr, &Tolerances::energy},
+    {"linear_momentum", nullptr, &ObjectSummary::linear_momentum, &Tolerances::momentum},
+    {"angular_momentum", nullptr, &ObjectSummary::angular_momentum, &Tolerances::angular_momentum},
+};
+
+}  // namespace
+
 // ---------------------------------------------------------------------------------------------
 // Summarize
 
@@ -194,16 +225,9 @@ std::string summary_to_yaml(const RunSummary& summary) {
     for (const ObjectSummary& o : f.objects) {
       y += "  - name: " + quoted(o.name) + "\n";
       y += "    particles: " + std::to_string(o.particles) + "\n";
-      y += "    centroid: " + vec(o.centroid) + "\n";
-      y += "    bbox_min: " + vec(o.bbox_min) + "\n";
-      y += "    bbox_max: " + vec(o.bbox_max) + "\n";
-      y += "    mean_speed: " + number(o.mean_speed) + "\n";
-      y += "    max_speed: " + number(o.max_speed) + "\n";
-      y += "    kinetic_energy: " + number(o.kinetic_energy) + "\n";
-      y += "    elastic_energy: " + number(o.elastic_energy) + "\n";
-      y += "    gravitational_energy: " + number(o.gravitational_energy) + "\n";
-      y += "    linear_momentum: " + vec(o.linear_momentum) + "\n";
-      y += "    angular_momentum: " + vec(o.angular_momentum) + "\n";
+      for (const Quantity& q : kQuantities)
+        y += std::string("    ") + q.name + ": " +
+             (q.vector ? vec(o.*q.vector) : number(o.*q.number)) + "\n";
     }
   }
   return y;
@@ -312,19 +336,14 @@ class SummaryReader {
     ObjectSummary o;
     o.name = scalar(key(n, "name", where), where + ".name");
     const std::string w = where + " (" + o.name + ")";
-    auto num = [&](const char* k) { return real(key(n, k, w), w + "." + k); };
-    auto v3 = [&](const char* k) { return vec3(key(n, k, w), w + "." + k); };
     o.particles = static_cast<std::size_t>(integer(key(n, "particles", w), w + ".particles", 0));
-    o.centroid = v3("centroid");
-    o.bbox_min = v3("bbox_min");
-    o.bbox_max = v3("bbox_max");
-    o.mean_speed = num("mean_speed");
-    o.max_speed = num("max_speed");
-    o.kinetic_energy = num("kinetic_energy");
-    o.elastic_energy = num("elastic_energy");
-    o.gravitational_energy = num("gravitational_energy");
-    o.linear_momentum = v3("linear_momentum");
-    o.angular_momentum = v3("angular_momentum");
+    for (const Quantity& q : kQuantities) {
+      const YAML::Node value = key(n, q.name, w);
+      if (q.vector)
+        o.*q.vector = vec3(value, w + "." + q.name);
+      else
+        o.*q.number = real(value, w + "." + q.name);
+    }
     return o;
   }
 
@@ -509,33 +528,6 @@ Tolerances parse_tolerance_overrides(Tolerances base, const std::vector<std::str
 
 namespace {
 
-/// One compared quantity: how to read it and which tolerance it uses.
-struct Quantity {
-  const char* name;
-  int components;  // 1 for a scalar, 3 for a vector
-  double Tolerances::*tolerance;
-  double (*get)(const ObjectSummary&, int component);
-};
-
-const Quantity kQuantities[] = {
-    {"centroid", 3, &Tolerances::centroid,
-     [](const ObjectSummary& o, int c) { return o.centroid[c]; }},
-    {"bbox_min", 3, &Tolerances::bbox, [](const ObjectSummary& o, int c) { return o.bbox_min[c]; }},
-    {"bbox_max", 3, &Tolerances::bbox, [](const ObjectSummary& o, int c) { return o.bbox_max[c]; }},
-    {"mean_speed", 1, &Tolerances::speed, [](const ObjectSummary& o, int) { return o.mean_speed; }},
-    {"max_speed", 1, &Tolerances::speed, [](const ObjectSummary& o, int) { return o.max_speed; }},
-    {"kinetic_energy", 1, &Tolerances::energy,
-     [](const ObjectSummary& o, int) { return o.kinetic_energy; }},
-    {"elastic_energy", 1, &Tolerances::energy,
-     [](const ObjectSummary& o, int) { return o.elastic_energy; }},
-    {"gravitational_energy", 1, &Tolerances::energy,
-     [](const ObjectSummary& o, int) { return o.gravitational_energy; }},
-    {"linear_momentum", 3, &Tolerances::momentum,
-     [](const ObjectSummary& o, int c) { return o.linear_momentum[c]; }},
-    {"angular_momentum", 3, &Tolerances::angular_momentum,
-     [](const ObjectSummary& o, int c) { return o.angular_momentum[c]; }},
-};
-
 /// |a - b|; infinite when exactly one of them is not finite or they are unequal non-finite
 /// values, zero when both are the same infinity or both NaN (an identical broken run).
 double difference(double a, double b) {
@@ -644,7 +636,7 @@ CompareResult compare_summaries(const RunSummary& a, const RunSummary& b, const 
     for (std::size_t i = 0; i < a.frames.size(); ++i) {
       const FrameSummary &fa = a.frames[i], &fb = b.frames[i];
       for (std::size_t k = 0; k < fa.objects.size(); ++k) {
-        for (int c = 0; c < q.components; ++c) {
+        for (int c = 0; c < q.components(); ++c) {
           const double va = q.get(fa.objects[k], c), vb = q.get(fb.objects[k], c);
           const double d = difference(va, vb);
           if (d > worst.tolerance && worst.first_frame_over < 0) worst.first_frame_over = fa.frame;
@@ -655,7 +647,7 @@ CompareResult compare_summaries(const RunSummary& a, const RunSummary& b, const 
             worst.value_a = va;
             worst.value_b = vb;
             worst.quantity =
-                q.components == 1 ? std::string(q.name) : std::string(q.name) + "." + kAxis[c];
+                q.components() == 1 ? std::string(q.name) : std::string(q.name) + "." + kAxis[c];
           }
         }
       }
