@@ -395,6 +395,63 @@ int cmd_compare(const Args& args) {
   }
 }
 
+/// A scene described, validated and built for run, validate or golden, with where it writes.
+struct BuiltRun {
+  mpm::SceneDesc scene;                  ///< As loaded, with the command line's overrides.
+  std::unique_ptr<mpm::Simulation> sim;  ///< Built (and restored, with --resume).
+  std::filesystem::path out;             ///< The output folder (a golden's: its file's).
+  int resumed_frame = 0;                 ///< The frame restored from, 0 for a fresh run.
+};
+
+/// Describes, validates and builds the run of `args` and prepares where it writes; every
+/// problem is a SceneError (exit code 2).
+BuiltRun build_run(const Args& args, mpm::MaterialRegistry& registry) {
+  BuiltRun b;
+  mpm::SceneDesc& scene = b.scene;
+  std::filesystem::path& out = b.out;
+  mpm::LoadOptions options;
+  for (const std::string& s : args.sets) options.overrides.push_back(mpm::parse_override(s));
+  options.plugins = plugin_policy(args);
+  scene = mpm::load_scene(args.scene, registry, options);
+  if (args.frames) scene.simulation.frames = *args.frames;  // the header says what will run
+  if (!args.formats.empty()) {
+    scene.output.formats.clear();
+    std::stringstream list(args.formats);
+    for (std::string name; std::getline(list, name, ',');) {
+      const auto f = mpm::format_from_name(name);
+      if (!f)
+        throw mpm::SceneError({"--format"}, "",
+                              "unknown format '" + name + "'; expected " + mpm::format_names());
+      scene.output.formats.push_back(*f);
+    }
+  }
+  b.sim = mpm::Simulation::create(scene, registry);
+  out = !args.resume.empty() ? std::filesystem::path(args.resume)
+        : args.out.empty()   ? scene.output.directory
+                             : std::filesystem::path(args.out);
+  if (!args.resume.empty()) {
+    try {
+      b.resumed_frame = mpm::restore_checkpoint(out / "checkpoint.h5", *b.sim);
+    } catch (const std::exception& e) {
+      throw mpm::SceneError({"--resume"}, "", e.what());
+    }
+  } else if (args.command == "golden") {
+    out = std::filesystem::path(args.output_file).parent_path();
+    if (out.empty()) out = ".";
+    if (std::filesystem::exists(args.output_file) && !args.force)
+      throw mpm::SceneError(
+          {"-o"}, "", "'" + args.output_file + "' exists; give --force to replace this golden");
+  } else if (args.command == "run" && mpm::parallel::rank() == 0) {
+    try {
+      mpm::prepare_output_directory(out, args.force);
+    } catch (const std::exception& e) {
+      if (!args.out.empty()) throw mpm::SceneError({"--out"}, "", e.what());
+      throw mpm::SceneError(scene.output.loc, "output.directory", e.what());
+    }
+  }
+  return b;
+}
+
 /// run, validate and golden: describe and validate the scene, build it, then run it.
 int cmd_run(const Args& args) {
   mpm::MaterialRegistry registry = mpm::builtin_registry();
@@ -404,52 +461,9 @@ int cmd_run(const Args& args) {
     usage_error("unknown command '" + args.command + "'");
   if (args.scene.empty()) usage_error("'mpm " + args.command + "' needs a scene file");
 
-  // Describe and validate, then build: any problem is a SceneError, exit code 2.
-  std::unique_ptr<mpm::Simulation> sim;
-  mpm::SceneDesc scene;
-  std::filesystem::path out;
-  int resumed_frame = 0;
+  BuiltRun built;
   try {
-    mpm::LoadOptions options;
-    for (const std::string& s : args.sets) options.overrides.push_back(mpm::parse_override(s));
-    options.plugins = plugin_policy(args);
-    scene = mpm::load_scene(args.scene, registry, options);
-    if (args.frames) scene.simulation.frames = *args.frames;  // the header says what will run
-    if (!args.formats.empty()) {
-      scene.output.formats.clear();
-      std::stringstream list(args.formats);
-      for (std::string name; std::getline(list, name, ',');) {
-        const auto f = mpm::format_from_name(name);
-        if (!f)
-          throw mpm::SceneError({"--format"}, "", "unknown format '" + name + "'; expected " +
-                                                      mpm::format_names());
-        scene.output.formats.push_back(*f);
-      }
-    }
-    sim = mpm::Simulation::create(scene, registry);
-    out = !args.resume.empty() ? std::filesystem::path(args.resume)
-          : args.out.empty()   ? scene.output.directory
-                               : std::filesystem::path(args.out);
-    if (!args.resume.empty()) {
-      try {
-        resumed_frame = mpm::restore_checkpoint(out / "checkpoint.h5", *sim);
-      } catch (const std::exception& e) {
-        throw mpm::SceneError({"--resume"}, "", e.what());
-      }
-    } else if (args.command == "golden") {
-      out = std::filesystem::path(args.output_file).parent_path();
-      if (out.empty()) out = ".";
-      if (std::filesystem::exists(args.output_file) && !args.force)
-        throw mpm::SceneError({"-o"}, "", "'" + args.output_file +
-                                              "' exists; give --force to replace this golden");
-    } else if (args.command == "run" && mpm::parallel::rank() == 0) {
-      try {
-        mpm::prepare_output_directory(out, args.force);
-      } catch (const std::exception& e) {
-        if (!args.out.empty()) throw mpm::SceneError({"--out"}, "", e.what());
-        throw mpm::SceneError(scene.output.loc, "output.directory", e.what());
-      }
-    }
+    built = build_run(args, registry);
     if (mpm::parallel::any_all(false)) return mpm::kExitBadInput;  // another rank failed
   } catch (const mpm::SceneError& e) {
     // Every rank stops with code 2; rank 0 says why (the same error on every rank, or its own:
@@ -458,6 +472,10 @@ int cmd_run(const Args& args) {
     mpm::parallel::any_all(true);
     return mpm::kExitBadInput;
   }
+  const mpm::SceneDesc& scene = built.scene;
+  const std::unique_ptr<mpm::Simulation>& sim = built.sim;
+  const std::filesystem::path& out = built.out;
+  const int resumed_frame = built.resumed_frame;
   const bool root = mpm::parallel::rank() == 0;
   if (root)
     for (const std::string& w : mpm::scene_warnings(*sim)) spdlog::warn("{}", w);
