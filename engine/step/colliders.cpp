@@ -138,6 +138,33 @@ openvdb::FloatGrid::ConstPtr read_vdb(const WallDesc& w, std::size_t k) {
 
 }  // namespace
 
+std::vector<Real> depth_below_surface(const TriangleMesh& mesh, std::span<const Vec3> points,
+                                      Real voxel, Real cap) {
+  openvdb::initialize();  // registers the grid types; safe to call again
+  std::vector<openvdb::Vec3s> vertices;
+  std::vector<openvdb::Vec3I> triangles;
+  for (const Vec3& v : mesh.vertices) vertices.emplace_back(v.x(), v.y(), v.z());
+  for (const auto& t : mesh.triangles) triangles.emplace_back(t[0], t[1], t[2]);
+  const auto xform = openvdb::math::Transform::createLinearTransform(voxel);
+  const float inside = static_cast<float>(cap / voxel) + 2;
+  openvdb::FloatGrid::Ptr grid = openvdb::tools::meshToSignedDistanceField<openvdb::FloatGrid>(
+      *xform, vertices, triangles, {}, 1.0f, inside);
+  std::vector<Real> depth(points.size());
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(points.size());
+#pragma omp parallel
+  {
+    const auto acc = grid->getConstAccessor();
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t q = 0; q < n; ++q) {
+      const Vec3& x = points[q];
+      const openvdb::Vec3d ijk = xform->worldToIndex(openvdb::Vec3d(x.x(), x.y(), x.z()));
+      const Real d = -static_cast<Real>(openvdb::tools::BoxSampler::sample(acc, ijk));
+      depth[q] = d <= cap ? std::max(d, Real(0)) : Real(-1);
+    }
+  }
+  return depth;
+}
+
 std::vector<Collider> build_colliders(const std::vector<WallDesc>& walls, Real voxel) {
   std::vector<Collider> out;
   for (std::size_t k = 0; k < walls.size(); ++k) {

@@ -3,8 +3,10 @@
 /// acting on grid velocities like the plane and box walls of walls.h.
 
 #include <memory>
+#include <span>
 #include <vector>
 
+#include "engine/scene/mesh.h"
 #include "engine/scene/scene_desc.h"
 #include "engine/step/grid.h"
 
@@ -64,6 +66,13 @@ struct Collider {
 /// Throws SceneError at the wall's key for an unreadable, empty or open mesh, a missing VDB
 /// file or grid (listing the grids found), or a grid that is not a float level set.
 std::vector<Collider> build_colliders(const std::vector<WallDesc>& walls, Real voxel);
+
+/// The depth of each of `points` below the surface of the closed `mesh`, m, where it is at
+/// most `cap`, and -1 where it is deeper: the mesh's signed distance (OpenVDB meshToVolume,
+/// voxels of `voxel` m, a band of `cap` inside), sampled trilinearly. Contact at the particles
+/// gives each particle of an elastic body this radius (contact.h).
+std::vector<Real> depth_below_surface(const TriangleMesh& mesh, std::span<const Vec3> points,
+                                      Real voxel, Real cap);
 
 /// Applies each collider's condition, at time `time`, to the active nodes with phi <= 0
 /// (only nodes inside its bounding box are sampled), relative to the collider's velocity at

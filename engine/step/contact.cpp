@@ -16,12 +16,35 @@ struct WallHit {
   Vec3 velocity;  ///< Wall velocity at the particle, m/s.
 };
 
-/// Appends a contact for every particle that `hit(x, reach, out)` finds within `reach(q)` of
-/// one wall, in particle order whatever the thread count (each thread scans one contiguous
-/// chunk, and the chunks are joined in order).
+/// The radius of particle q against a wall of normal n (contact.h): half its spacing
+/// (`half_spacing`, per object), or on an elastic body's surface its rest depth times |F^T n|,
+/// at most 3/4 of the spacing (kRestDepthCap half spacings).
+struct ParticleRadius {
+  const Particles& p;                     ///< The particles.
+  const std::vector<Real>& half_spacing;  ///< Per object, m.
+  const std::vector<Real>& rest_depth;    ///< ContactState::rest_depth.
+
+  /// Rest depth of particle q, or -1 if it has none.
+  Real depth(std::size_t q) const { return rest_depth.empty() ? -1 : rest_depth[p.id[q]]; }
+  /// The largest radius particle q can have against any wall.
+  Real most(std::size_t q) const {
+    return half_spacing[p.object[q]] * (depth(q) < 0 ? 1 : kRestDepthCap);
+  }
+  /// The radius against a wall of normal n.
+  Real along(std::size_t q, const Vec3& n) const {
+    const Real d = depth(q);
+    if (d < 0) return half_spacing[p.object[q]];
+    return std::min(d * (to_real(p.F[q]).transpose() * n).norm(), most(q));
+  }
+};
+
+/// Appends a contact for every particle that `hit(x, reach, out)` finds within `reach` of one
+/// wall (its radius bound plus a cell), in particle order whatever the thread count (each
+/// thread scans one contiguous chunk, and the chunks are joined in order).
 template <class Hit>
-void find_contacts(const Particles& p, const std::vector<Real>& radius, Real cell, Boundary b,
-                   Real friction, std::uint32_t wall, Hit&& hit, ContactState& st) {
+void find_contacts(const ParticleRadius& radius, Real cell, Boundary b, Real friction,
+                   std::uint32_t wall, Hit&& hit, ContactState& st) {
+  const Particles& p = radius.p;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
   const int threads = n >= kParallelMinItems ? omp_get_max_threads() : 1;
   std::vector<std::vector<std::pair<std::uint32_t, WallHit>>> found(threads);
@@ -30,21 +53,22 @@ void find_contacts(const Particles& p, const std::vector<Real>& radius, Real cel
     auto& mine = found[omp_get_thread_num()];
 #pragma omp for schedule(static)
     for (std::ptrdiff_t q = 0; q < n; ++q) {
-      const Real r = radius[p.object[q]];
       WallHit h;
-      if (hit(p.x[q], r + cell, h)) mine.emplace_back(static_cast<std::uint32_t>(q), h);
+      if (hit(p.x[q], radius.most(q) + cell, h))
+        mine.emplace_back(static_cast<std::uint32_t>(q), h);
     }
   }
+  const std::size_t objects = radius.half_spacing.size();
   for (const auto& chunk : found)
     for (const auto& [q, h] : chunk) {
       st.particle.push_back(q);
       st.point.push_back(p.x[q] - h.distance * h.normal);
       st.normal.push_back(h.normal);
       st.wall_velocity.push_back(h.velocity);
-      st.gap.push_back(h.distance - radius[p.object[q]]);
+      st.gap.push_back(h.distance - radius.along(q, h.normal));
       st.boundary.push_back(b);
       st.friction.push_back(friction);
-      st.patch.push_back(wall * static_cast<std::uint32_t>(radius.size()) + p.object[q]);
+      st.patch.push_back(wall * static_cast<std::uint32_t>(objects) + p.object[q]);
     }
 }
 
@@ -70,8 +94,43 @@ bool rubs(const ContactState& st, std::size_t c) {
   return held(st, c) || st.friction[c] > 0;
 }
 
-/// A node lighter than this fraction of a contact's particle mass takes no part in its contact.
-constexpr Real kLightNode = 0.05;
+/// The weights with which contact c's impulse enters the N^3 nodes of its contact point's
+/// stencil `s`: the force that a continuation of the body behind the wall, rows of particles
+/// of the contact's spacing under uniform pressure, would put on each node, along the normal
+/// (a mirror image, as ghost particles make walls in SPH: Adami, Hu and Adams 2012, "A
+/// generalized wall boundary condition for smoothed particle hydrodynamics", JCP 231).
+/// Summed with the body's own, that force vanishes at every node, so these are the boundary
+/// terms the particles' quadrature of the stress divergence calls for: a body at uniform
+/// pressure is in balance node by node wherever the wall lies between the node rows. The
+/// force is the stress scatter's: the kernel's gradient, or with MLS its D^-1 w (x_i - x)
+/// (Hu et al. 2018, eq. 29). With the wall on a node row and APIC these are the contact
+/// point's own weights; nodes behind the wall that only a B-spline tail of the body reaches
+/// get little or none (docs/accuracy.md, "Walls between the node rows").
+template <Kernel K>
+void ghost_weights(const Stencil<KernelTraits<K>::kNodes>& s, const Vec3& point, const Vec3& n,
+                   Real spacing, bool mls, const Grid& g, Real* weights) {
+  constexpr int N = KernelTraits<K>::kNodes;
+  std::fill(weights, weights + N * N * N, Real(0));
+  // Rows down to N cells behind the wall: beyond, a ghost reaches no node of the stencil.
+  const int rows = static_cast<int>(std::ceil(N * g.h.maxCoeff() / spacing));
+  const Vec3 inv_d = KernelTraits<K>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
+  for (int r = 0; r < rows; ++r) {
+    const Vec3 xg = point - (r + Real(0.5)) * spacing * n;
+    const auto sg = make_stencil<K>(xg, g.origin, g.inv_h);
+    for (int i = 0; i < N; ++i)
+      for (int j = 0; j < N; ++j)
+        for (int k = 0; k < N; ++k) {
+          const Vec3i node = sg.base + Vec3i(i, j, k);
+          const Vec3i rel = node - s.base;
+          if ((rel.array() < 0).any() || (rel.array() >= N).any()) continue;
+          const Vec3 grad =
+              mls ? Vec3(sg.weight(i, j, k) *
+                         inv_d.cwiseProduct(g.position(node.x(), node.y(), node.z()) - xg))
+                  : sg.gradient(i, j, k);
+          weights[(rel.x() * N + rel.y()) * N + rel.z()] += spacing * grad.dot(n);
+        }
+  }
+}
 
 /// The contacts' stencils (weights, grid storage indices), then compact node indices in
 /// first-touch order with each node's velocity, inverse mass and key.
@@ -85,18 +144,17 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
   st.stencil = S;
   st.weights.resize(nc * S);
   // The stencil of the contact point, on the wall: the velocity there is the contact's, so a
-  // ball rolls on the wall, not on its particles' centres. Nodes the point reaches that hold
-  // no mass, or only a B-spline tail's (less than kLightNode of the particle's mass: behind
-  // the wall, at the edge of the body's stencils), take no part: the weights of the others
-  // are scaled to sum to one. An impulse on such a node moves it by impulse / mass, and the
-  // gradient that puts into the bottom particles' F update grew without bound on the wide
-  // block that sticks at offset 3/8 (docs/accuracy.md).
+  // ball rolls on the wall, not on its particles' centres; its impulse enters with the ghost
+  // weights. Nodes without mass take no part, and the weights of the others are scaled to
+  // sum to one.
 #pragma omp parallel for schedule(static) if (sn * S >= kParallelMinItems)
   for (std::ptrdiff_t c = 0; c < sn; ++c) {
     dispatch_kernel(kernel, [&]<Kernel K>() {
       if constexpr (KernelTraits<K>::kNodes == N) {
         const auto s = make_stencil<K>(st.point[c], g.origin, g.inv_h);
-        const Real light = kLightNode * p.mass(st.particle[c]);
+        Real ghost[S];
+        ghost_weights<K>(s, st.point[c], st.normal[c], std::cbrt(p.volume0(st.particle[c])),
+                         st.mls_quadrature, g, ghost);
         int t = 0;
         Real sum = 0;
         for (int i = 0; i < N; ++i)
@@ -108,10 +166,10 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
                   g.slot[g.page(n.x() >> Grid::kBlockBits, n.y() >> Grid::kBlockBits,
                                 n.z() >> Grid::kBlockBits)] >= 0) {
                 at = g.node_index(n.x(), n.y(), n.z());
-                if (!(g.mass[at] > light)) at = kNone;
+                if (!(g.mass[at] > 0)) at = kNone;
               }
               storage_index[c * S + t] = at;
-              st.weights[c * S + t] = at == kNone ? 0 : s.weight(i, j, k);
+              st.weights[c * S + t] = at == kNone ? 0 : std::max(ghost[t], Real(0));
               sum += st.weights[c * S + t];
             }
         for (t = 0; t < S; ++t) st.weights[c * S + t] = sum > 0 ? st.weights[c * S + t] / sum : 0;
@@ -345,12 +403,13 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
   for (std::size_t o = 0; o < radius.size(); ++o)
     radius[o] = Real(0.5) * std::cbrt(p.object_volume0[o]);
   const Real cell = g.h.maxCoeff();
+  const ParticleRadius particle_radius{p, radius, st.rest_depth};
   std::uint32_t wall = 0;
   for (const WallPlane& w : planes) {
     const Vec3 point = w.point + w.offset(time);
     const Vec3 velocity = w.velocity_at(time + dt);
     find_contacts(
-        p, radius, cell, w.boundary, w.friction, wall++,
+        particle_radius, cell, w.boundary, w.friction, wall++,
         [&](const Vec3& x, Real reach, WallHit& h) {
           const Real d = (x - point).dot(w.normal);
           if (d >= reach) return false;
@@ -361,11 +420,12 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
   }
   for (const Collider& c : colliders) {
     const ColliderPose now = c.pose(time), next = c.pose(time + dt);
-    const Vec3 margin =
-        Vec3::Constant(radius.empty() ? 0 : *std::max_element(radius.begin(), radius.end()) + cell);
+    const Vec3 margin = Vec3::Constant(
+        radius.empty() ? 0
+                       : kRestDepthCap * *std::max_element(radius.begin(), radius.end()) + cell);
     const Eigen::AlignedBox<Real, 3> near(now.bounds.min() - margin, now.bounds.max() + margin);
     find_contacts(
-        p, radius, cell, c.boundary, c.friction, wall++,
+        particle_radius, cell, c.boundary, c.friction, wall++,
         [&](const Vec3& x, Real reach, WallHit& h) {
           if (!near.contains(x)) return false;
           const Vec3 x0 = now.to_rest(x);

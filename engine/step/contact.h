@@ -4,11 +4,15 @@
 /// a wall lies between the node rows.
 ///
 /// A wall's reaction enters the grid where the material touches it: at each particle within
-/// reach of a wall, through the interpolation weights of the particle's projection on the wall
-/// (its contact point), as a Lagrange multiplier (an impulse) that makes the grid velocity
-/// interpolated there obey the wall's condition. This is the weak form's boundary term (the
-/// traction integrated against the shape functions at the contact, not at the nodes nearest
-/// the wall): frictional contact on the material particles, posed on the grid's velocities
+/// reach of a wall, at the particle's projection on the wall (its contact point), as a
+/// Lagrange multiplier (an impulse) that makes the grid velocity there obey the wall's
+/// condition. The impulse's weights over the contact point's stencil are the boundary term
+/// that the particles' own quadrature of the stress divergence calls for: the force a mirror
+/// image of the body behind the wall would put on each node (ghost particles; contact.cpp,
+/// ghost_weights), so that a body at rest on a wall is in balance node by node wherever the
+/// wall lies between the node rows. This is the weak form's boundary term (the traction
+/// integrated against the shape functions at the contact, not at the nodes nearest the
+/// wall): frictional contact on the material particles, posed on the grid's velocities
 /// (Li et al. 2021, "BFEMP: interpenetration-free MPM-FEM coupling with barrier contact",
 /// arXiv:2108.03349, which reduces to separable frictional boundaries for MPM; M. Li,
 /// "Physics-Based Simulation", lecture 28.2, "Frictional contact on material particles").
@@ -21,6 +25,14 @@
 /// why; docs/accuracy.md, "Walls between the node rows", what it measures).
 /// A particle still a gap g away is held back to -g / dt (speculative contacts, as in Jolt
 /// Physics), so nothing passes a wall between two substeps.
+///
+/// A particle's radius, where the gap is measured from, is half its spacing, except on the
+/// surface of an elastic body (one whose material has no plasticity, so it keeps its rest
+/// shape): there a particle within 3/4 of the spacing of the surface at rest is the ball of its
+/// depth below that surface, deformed by its F (its support along the wall's normal n is
+/// depth |F^T n|). The union of those balls is the body's own smooth surface, where balls of
+/// half the spacing leave a bumpy one: dips of up to half the spacing between particles, over
+/// which a ball rolling on its particles hops and loses energy (docs/accuracy.md).
 
 #include <vector>
 
@@ -32,6 +44,11 @@
 #include "engine/step/walls.h"
 
 namespace mpm {
+
+/// The deepest a particle of an elastic body may lie below its surface at rest and still
+/// have its depth as its contact radius, in half spacings (3/4 of the spacing): deeper ones,
+/// and the second row of a body sampled on a lattice (1.5 spacings deep), keep half the spacing.
+constexpr Real kRestDepthCap = 1.5;
 
 /// Settings of the contact solve.
 struct ContactSettings {
@@ -63,6 +80,10 @@ struct ContactState {
   std::vector<std::size_t> storage;     ///< Grid storage index of each compact node (node 0:
                                         ///< none, for stencil nodes without mass).
   std::vector<std::int32_t> compact;    ///< Scratch per grid storage slot, -1 between uses.
+  bool mls_quadrature = false;   ///< The stress scatter weighs by MLS's gradient (transfer mls).
+  std::vector<Real> rest_depth;  ///< By particle id: the depth below its elastic body's surface
+                                 ///< at rest, m, or -1 (half the spacing); empty: all -1.
+                                 ///< Set once at creation; clear() keeps it.
   std::size_t size() const { return particle.size(); }  ///< Number of contacts.
   /// Drops every contact and node (the scratch `compact` stays).
   void clear();

@@ -163,6 +163,15 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     }
     if (!group)
       throw SceneError(od.loc, key, "material '" + od.material + "' built no material group");
+    // Contact at the particles: the surface particles of an elastic body take their depth
+    // below its surface as their radius (engine/step/contact.h).
+    if (scene.simulation.contact == Contact::particles && !group->has_plasticity()) {
+      const Real spacing = std::cbrt(v0);
+      const std::vector<Real> depth = depth_below_surface(mesh, {P.x.data() + info.first, n},
+                                                          spacing / 4, kRestDepthCap * spacing / 2);
+      sim->contact_.rest_depth.resize(P.size(), -1);
+      std::copy(depth.begin(), depth.end(), sim->contact_.rest_depth.begin() + info.first);
+    }
     sim->state_stride_.push_back(group->state().size() / n);
     sim->group_factories_.push_back(
         [create = mat->create, params = od.params, density](std::size_t count) {
@@ -171,6 +180,8 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     sim->materials_.push_back({info.first, n, std::move(group)});
     sim->objects_.push_back(info);
   }
+  if (!sim->contact_.rest_depth.empty()) sim->contact_.rest_depth.resize(P.size(), -1);
+  sim->contact_.mls_quadrature = scene.simulation.transfer == Transfer::mls;
   sim->walls_ = build_wall_planes(scene.walls);
   // Mesh level sets get voxels of half the cell size.
   sim->colliders_ = build_colliders(scene.walls, sim->grid_.h.minCoeff() / 2);
