@@ -13,8 +13,8 @@
 #endif
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "engine/step/simd/transfer_simd.cpp"
-#include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/cache_control.h>
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/highway.h>
 
 #include "engine/step/simd/corotated-inl.h"
@@ -87,7 +87,7 @@ void lane_weights(D d, V x, V* w, V* dw) {
 /// KernelTraits<K>::base and make_stencil compute it: stores the base node (int) at `base` and
 /// the offset of the base node from the particle, x_base - x (m, rounded to float once), at
 /// `corner`; returns fx - base (cells), from which the caller takes the weights.
-template <Kernel K, class DD, class VD = hn::Vec<DD>>
+template <Kernel K, class DD, class VD = hn::Vec<DD> >
 VD stencil_lanes(DD dd, VD x, const Grid& g, int a, float* corner, std::int32_t* base) {
   const hn::Rebind<float, DD> dh;
   const hn::Rebind<std::int32_t, DD> dih;
@@ -163,7 +163,8 @@ inline bool consecutive_batch(const ParticleOrder& ord, std::size_t b0, std::siz
 /// whose mass, volume and model the batch then sets once instead of looking up per lane.
 inline bool one_object(const Particles& p, std::uint32_t first) {
   const hn::RebindToUnsigned<DF> du;
-  return hn::AllTrue(du, hn::Eq(hn::LoadU(du, p.object.data() + first), hn::Set(du, p.object[first])));
+  return hn::AllTrue(du,
+                     hn::Eq(hn::LoadU(du, p.object.data() + first), hn::Set(du, p.object[first])));
 }
 
 /// -V0 tau of the kLanes particles order[b0, b0 + kLanes) (clamped to `end`), for the scatter:
@@ -178,8 +179,7 @@ struct StressBatch {
 /// kLanes consecutive particles (consecutive_batch), whose F load_matrices reads; `uniform`:
 /// and they belong to one object (one_object).
 void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
-                 std::size_t b0, std::size_t end, bool consecutive, bool uniform,
-                 StressBatch& sb) {
+                 std::size_t b0, std::size_t end, bool consecutive, bool uniform, StressBatch& sb) {
   const DF d;
   sb.b0 = b0;
   sb.b1 = std::min(end, b0 + kLanes);
@@ -265,6 +265,9 @@ struct ScatterBatch {
 };
 
 /// Fills `pb` with order[b0, min(b0 + kLanes, end)); `sb` holds their stresses after.
+/// Long because it is the scatter's per-batch hot path: its lane arrays (weights, corners,
+/// velocities, C) live on its stack and in registers between the stencil and the momentum
+/// tables; split into functions they would be passed through memory.
 template <Kernel K, Transfer T>
 void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
                 const Grid& g, Real dt, std::size_t b0, std::size_t end, StressBatch& sb,
@@ -334,8 +337,8 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
     for (int a = 0; a < 3; ++a) {
       hn::Vec<decltype(dd)> w[N], dw[N];
       lane_weights<K>(
-          dd, stencil_lanes<K>(dd, hn::Load(dd, xs[a] + h), g, a, corner[a] + h, pb.base[a] + h),
-          w, dw);
+          dd, stencil_lanes<K>(dd, hn::Load(dd, xs[a] + h), g, a, corner[a] + h, pb.base[a] + h), w,
+          dw);
       for (int k = 0; k < N; ++k) {
         hn::Store(hn::DemoteTo(dh, w[k]), dh, wl[a][k] + h);
         hn::Store(hn::DemoteTo(dh, hn::Mul(dw[k], hn::Set(dd, g.inv_h[a]))), dh, dwl[a][k] + h);
@@ -391,6 +394,10 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
 /// plane adds them times its x factors, broadcast: momentum e at (i, j, k) is
 /// X_e(i) A + wx(i) B_e with A = wy wz and B_e = Y_e(j) wz + wy Z_e(k). With fewer lanes,
 /// node n = (i N + j) N + k sits in lane n of NV vectors and takes all three factors by lookup.
+///
+/// Long because it is the SIMD scatter's hot loop: the window's sums (acc) and its lane tables
+/// stay in registers across the loop over particles and the slide along z; split into
+/// functions they would be passed through memory.
 template <Kernel K, Transfer T>
 void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t begin, std::size_t end,
                    Real dt, std::span<const BatchModel> fold, Grid& g) {
@@ -544,7 +551,11 @@ void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt,
 }
 
 /// Gathers particles [q0, q0 + count), count <= kLanes, one lane each (the last lane's
-/// particle repeated in unused lanes, which are not written back).
+/// particle repeated in unused lanes, which are not written back). Long because it is the SIMD
+/// gather's hot kernel: the stencil's weights, node addresses and running sums (about 40
+/// vectors) stay in registers from the stencil to the F and C update; split into functions
+/// they would be passed through memory. Its jobs, in order: the stencil, F, runs of lanes in
+/// one cell, node addresses, weights, the stencil sums, C, F, then the stores.
 template <Kernel K, Transfer T>
 void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Particles& p) {
   using Traits = KernelTraits<K>;
@@ -700,8 +711,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
             }
           } else {
             const VI sl = hn::IfThenElse(up[2][k], sij[1], sij[0]);
-            const VI vi =
-                hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl), hn::Add(oij, off[2][k]));
+            const VI vi = hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl), hn::Add(oij, off[2][k]));
             if constexpr (E0 == 0) {
               const VF lo = hn::BitCast(
                   d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::LowerHalf(dih, vi))));
@@ -810,8 +820,8 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
 /// Advects particles [q0, q0 + count) with their new velocities: advect_particle, in double
 /// lanes for a full batch, where x + dt v is one fused multiply-add on targets that have one
 /// (AVX2, AVX-512), so a position may differ from advect_particle's in its last bit.
-void advect_batch(const AdvectBox& box, Real dt, std::size_t q0, std::size_t count,
-                  Particles& p, std::size_t& clamped, std::size_t& nonfinite, Real& v2) {
+void advect_batch(const AdvectBox& box, Real dt, std::size_t q0, std::size_t count, Particles& p,
+                  std::size_t& clamped, std::size_t& nonfinite, Real& v2) {
   if (count < kLanes) {
     for (std::size_t q = q0; q < q0 + count; ++q)
       advect_particle(box, dt, p.v[q], p.x[q], clamped, nonfinite, v2);
