@@ -550,22 +550,14 @@ void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt,
   }
 }
 
-/// Gathers particles [q0, q0 + count), count <= kLanes, one lane each (the last lane's
-/// particle repeated in unused lanes, which are not written back). Long because it is the SIMD
-/// gather's hot kernel: the stencil's weights, node addresses and running sums (about 40
-/// vectors) stay in registers from the stencil to the F and C update; split into functions
-/// they would be passed through memory. Its jobs, in order: the stencil, F, runs of lanes in
-/// one cell, node addresses, weights, the stencil sums, C, F, then the stores.
-template <Kernel K, Transfer T>
-void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Particles& p) {
+/// The stencil of particles [q0, q0 + count) (count <= kLanes, the last particle repeated in
+/// unused lanes) per axis and lane: the base node, the distance fx - base (cells) and the
+/// corner offset x_base - x (m), computed in double and rounded to float once.
+template <Kernel K>
+HWY_INLINE void gather_stencil(const Grid& g, const Particles& p, std::size_t q0, std::size_t count,
+                               float (*dist)[kLanes], float (*corner)[kLanes],
+                               std::int32_t (*base)[kLanes]) {
   using Traits = KernelTraits<K>;
-  constexpr int N = Traits::kNodes;
-  constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
-  constexpr bool kGrad = T != Transfer::mls;  // MLS updates F with C, not with grad w
-  const DF d;
-  const DI di;
-  alignas(64) float dist[3][kLanes], corner[3][kLanes], Fin[9][kLanes];
-  alignas(64) std::int32_t base[3][kLanes];
   if (count == kLanes) {
     // A full batch: positions loaded three axes at a time into double lanes, the stencil
     // base, the distance to it and the corner offset computed there (as the scalar lines
@@ -590,6 +582,13 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       }
     }
   }
+}
+
+/// F of particles [q0, q0 + count) in float lanes (the last particle repeated in unused
+/// lanes): Fin[e][l] is entry e (column-major) of lane l's F.
+HWY_INLINE void load_F_lanes(const Particles& p, std::size_t q0, std::size_t count,
+                             float (*Fin)[kLanes]) {
+  [[maybe_unused]] const DF d;
   if constexpr (kFloatMatrices)
     if (count == kLanes) {
       VF f[9];
@@ -601,6 +600,66 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       const StoredReal* F = p.F[q0 + std::min(l, count - 1)].data();
       for (int e = 0; e < 9; ++e) Fin[e][l] = static_cast<float>(F[e]);
     }
+}
+
+/// Writes lanes [0, count) of the gather's results to particles [q0, q0 + count): F from
+/// out[0, 9), C from out[9, 18) (affine transfers only), v from out[18, 21), each column-major.
+template <bool kAffine>
+HWY_INLINE void store_gathered(const float (*out)[kLanes], std::size_t q0, std::size_t count,
+                               Particles& p) {
+  [[maybe_unused]] const DF d;
+  if constexpr (kFloatMatrices)
+    if (count == kLanes) {
+      VF m[9];
+      for (int e = 0; e < 9; ++e) m[e] = hn::Load(d, out[e]);
+      store_matrices(m, p.F[q0].data());
+      if constexpr (kAffine) {
+        for (int e = 0; e < 9; ++e) m[e] = hn::Load(d, out[9 + e]);
+        store_matrices(m, p.C[q0].data());
+      }
+    }
+  if (!kFloatMatrices || count < kLanes)
+    for (std::size_t l = 0; l < count; ++l) {
+      const std::size_t q = q0 + l;
+      StoredReal* F = p.F[q].data();
+      for (int e = 0; e < 9; ++e) F[e] = static_cast<StoredReal>(out[e][l]);
+      if constexpr (kAffine) {
+        StoredReal* Cq = p.C[q].data();
+        for (int e = 0; e < 9; ++e) Cq[e] = static_cast<StoredReal>(out[9 + e][l]);
+      }
+    }
+  if (count == kLanes) {
+    // Velocities widened to double in lanes and stored three axes at a time.
+    const hn::ScalableTag<double> dd;
+    const hn::Rebind<float, decltype(dd)> dh;
+    for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd))
+      hn::StoreInterleaved3(hn::PromoteTo(dd, hn::Load(dh, out[18] + h)),
+                            hn::PromoteTo(dd, hn::Load(dh, out[19] + h)),
+                            hn::PromoteTo(dd, hn::Load(dh, out[20] + h)), dd, p.v[q0 + h].data());
+  } else {
+    for (std::size_t l = 0; l < count; ++l) p.v[q0 + l] = Vec3(out[18][l], out[19][l], out[20][l]);
+  }
+}
+
+/// Gathers particles [q0, q0 + count), count <= kLanes, one lane each (the last lane's
+/// particle repeated in unused lanes, which are not written back). Long because it is the SIMD
+/// gather's hot kernel: the stencil's weights, node addresses and running sums (about 40
+/// vectors) stay in registers from the stencil to the F and C update; split into functions
+/// they would be passed through memory. Its jobs, in order: the stencil (gather_stencil), F
+/// (load_F_lanes), runs of lanes in one cell, node addresses, weights, the stencil sums, C,
+/// the F update, then the stores (store_gathered).
+template <Kernel K, Transfer T>
+void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Particles& p) {
+  using Traits = KernelTraits<K>;
+  constexpr int N = Traits::kNodes;
+  constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
+  constexpr bool kGrad = T != Transfer::mls;  // MLS updates F with C, not with grad w
+  const DF d;
+  const DI di;
+  alignas(64) float dist[3][kLanes], corner[3][kLanes], Fin[9][kLanes];
+  alignas(64) std::int32_t base[3][kLanes];
+  gather_stencil<K>(g, p, q0, count, dist, corner, base);
+  load_F_lanes(p, q0, count, Fin);
   // Runs of lanes with the same stencil cell (the reorder stage keeps a cell's particles
   // together): with at most kMaxRuns runs in the batch, each run's node velocities are loaded
   // once and spread to its lanes by blends, instead of gathered lane by lane. The values are
@@ -784,37 +843,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     for (int col = 0; col < 3; ++col)
       for (int r = 0; r < 3; ++r) hn::Store(C[r][col], d, out[9 + 3 * col + r]);
   for (int e = 0; e < 3; ++e) hn::Store(sv[e], d, out[18 + e]);
-  if constexpr (kFloatMatrices)
-    if (count == kLanes) {
-      VF m[9];
-      for (int e = 0; e < 9; ++e) m[e] = hn::Load(d, out[e]);
-      store_matrices(m, p.F[q0].data());
-      if constexpr (kAffine) {
-        for (int e = 0; e < 9; ++e) m[e] = hn::Load(d, out[9 + e]);
-        store_matrices(m, p.C[q0].data());
-      }
-    }
-  if (!kFloatMatrices || count < kLanes)
-    for (std::size_t l = 0; l < count; ++l) {
-      const std::size_t q = q0 + l;
-      StoredReal* F = p.F[q].data();
-      for (int e = 0; e < 9; ++e) F[e] = static_cast<StoredReal>(out[e][l]);
-      if constexpr (kAffine) {
-        StoredReal* Cq = p.C[q].data();
-        for (int e = 0; e < 9; ++e) Cq[e] = static_cast<StoredReal>(out[9 + e][l]);
-      }
-    }
-  if (count == kLanes) {
-    // Velocities widened to double in lanes and stored three axes at a time.
-    const hn::ScalableTag<double> dd;
-    const hn::Rebind<float, decltype(dd)> dh;
-    for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd))
-      hn::StoreInterleaved3(hn::PromoteTo(dd, hn::Load(dh, out[18] + h)),
-                            hn::PromoteTo(dd, hn::Load(dh, out[19] + h)),
-                            hn::PromoteTo(dd, hn::Load(dh, out[20] + h)), dd, p.v[q0 + h].data());
-  } else {
-    for (std::size_t l = 0; l < count; ++l) p.v[q0 + l] = Vec3(out[18][l], out[19][l], out[20][l]);
-  }
+  store_gathered<kAffine>(out, q0, count, p);
 }
 
 /// Advects particles [q0, q0 + count) with their new velocities: advect_particle, in double
