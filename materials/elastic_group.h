@@ -7,6 +7,7 @@
 
 #include "engine/core/reduce.h"
 #include "materials/material.h"
+#include "materials/particle_loop.h"
 
 namespace mpm::materials {
 
@@ -14,20 +15,16 @@ namespace mpm::materials {
 template <class Model>
 void model_stress(const Model& model, std::span<const StoredMat3> F, Real volume0,
                   std::span<StoredMat3> out) {
-  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-  for (std::ptrdiff_t p = 0; p < n; ++p)
+  for_each_particle(F.size(), [&](std::ptrdiff_t p) {
     out[p] = to_stored(-volume0 * model.kirchhoff(to_real(F[p])));
+  });
 }
 
 /// The largest wave speed of a value-type model (wave_speed) over the particles, m/s.
 template <class Model>
 Real model_max_wave_speed(const Model& model, std::span<const StoredMat3> F, Real rho0) {
-  Real c = 0;
-  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static) reduction(max : c) if (n >= kParallelMinItems)
-  for (std::ptrdiff_t p = 0; p < n; ++p) c = std::max(c, model.wave_speed(to_real(F[p]), rho0));
-  return c;
+  return max_over_particles(
+      F.size(), [&](std::ptrdiff_t p) { return model.wave_speed(to_real(F[p]), rho0); });
 }
 
 /// The elastic energy of a value-type model (energy) over the particles, J; the same for any
@@ -59,7 +56,9 @@ class ElasticGroup final : public MaterialGroup {
   }
 
   BatchModel batch_model() const override {
-    if constexpr (requires(const Model& m) { { m.batch() } -> std::same_as<BatchModel>; })
+    if constexpr (requires(const Model& m) {
+                    { m.batch() } -> std::same_as<BatchModel>;
+                  })
       return model_.batch();
     else
       return {};

@@ -20,6 +20,7 @@
 
 #include "materials/elastic_group.h"
 #include "materials/material.h"
+#include "materials/plastic_group.h"
 #include "materials/svd.h"
 
 namespace mpm::materials {
@@ -120,79 +121,54 @@ struct DruckerPragerSand {
 };
 
 /// MaterialGroup for sand: the per-particle volume correction, for this group's range only.
-class SandGroup final : public MaterialGroup {
+class SandGroup final : public PlasticGroup<SandGroup> {
  public:
   /// `model` holds the moduli and cone; `count` particles start with no volume correction.
   SandGroup(const DruckerPragerSand& model, Real rho0, std::size_t count)
-      : model_(model), rho0_(rho0), vc_(count, 0) {}
+      : PlasticGroup(std::vector<Real>(count, 0)), model_(model), rho0_(rho0) {}
 
-  void compute_stress(std::span<const StoredMat3> F, Real volume0,
-                      std::span<StoredMat3> out) const override {
-    model_stress(model_, F, volume0, out);
-  }
+  /// The elastic model: the same for every particle (PlasticGroup).
+  const DruckerPragerSand& elastic_model(std::ptrdiff_t) const { return model_; }
 
-  bool has_plasticity() const override {
-    return true;
-  }
+  /// The largest wave speed at F (PlasticGroup), m/s.
+  Real wave_speed(const Mat3& F, std::ptrdiff_t) const { return model_.wave_speed(F, rho0_); }
 
-  void apply_plasticity(std::span<StoredMat3> F) override {
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p) {
-      const Mat3 Fe = to_real(F[p]);
-      // F^T F = V Sigma^2 V^T. For det F > 0 and sigma above the floor, U = F V Sigma^-1, so
-      // the projected U exp(H) V^T is F V diag(exp(H) / sigma) V^T: no U needed.
-      Mat3 V;
-      Vec3 s2;
-      symmetric_eigen(Fe.transpose() * Fe, s2, V);
-      const Real floor2 = DruckerPragerSand::kSigmaMin * DruckerPragerSand::kSigmaMin;
-      if (Fe.determinant() > 0 && s2.minCoeff() > floor2) {
-        const Vec3 s = s2.cwiseSqrt();
-        Vec3 e = s.array().log().matrix();
-        if (model_.project(e, vc_[p]))
-          F[p] = to_stored(Fe * V * (e.array().exp() / s.array()).matrix().asDiagonal() *
-                           V.transpose());
-        continue;
-      }
-      // Inverted or crushed: the rotation-variant SVD, rebuilt with positive singular values.
-      Mat3 U;
-      Vec3 s;
-      svd_rv(Fe, U, s, V);
-      Vec3 e = DruckerPragerSand::hencky(s);
-      model_.project(e, vc_[p]);
-      F[p] = to_stored(U * e.array().exp().matrix().asDiagonal() * V.transpose());
+  /// Projects particle p's F onto the yield cone, updating its volume correction
+  /// (PlasticGroup).
+  void project(StoredMat3& F, std::ptrdiff_t p) {
+    const Mat3 Fe = to_real(F);
+    // F^T F = V Sigma^2 V^T. For det F > 0 and sigma above the floor, U = F V Sigma^-1, so
+    // the projected U exp(H) V^T is F V diag(exp(H) / sigma) V^T: no U needed.
+    Mat3 V;
+    Vec3 s2;
+    symmetric_eigen(Fe.transpose() * Fe, s2, V);
+    const Real floor2 = DruckerPragerSand::kSigmaMin * DruckerPragerSand::kSigmaMin;
+    if (Fe.determinant() > 0 && s2.minCoeff() > floor2) {
+      const Vec3 s = s2.cwiseSqrt();
+      Vec3 e = s.array().log().matrix();
+      if (model_.project(e, state_[p]))
+        F = to_stored(Fe * V * (e.array().exp() / s.array()).matrix().asDiagonal() * V.transpose());
+      return;
     }
-  }
-
-  Real max_wave_speed(std::span<const StoredMat3> F) const override {
-    return model_max_wave_speed(model_, F, rho0_);
-  }
-
-  Real elastic_energy(std::span<const StoredMat3> F, Real volume0) const override {
-    return model_elastic_energy(model_, F, volume0);
-  }
-
-  std::span<Real> state() override {
-    return vc_;
+    // Inverted or crushed: the rotation-variant SVD, rebuilt with positive singular values.
+    Mat3 U;
+    Vec3 s;
+    svd_rv(Fe, U, s, V);
+    Vec3 e = DruckerPragerSand::hencky(s);
+    model_.project(e, state_[p]);
+    F = to_stored(U * e.array().exp().matrix().asDiagonal() * V.transpose());
   }
 
   /// Volume correction of each particle: the log of the plastic volume gained (>= 0).
-  const std::vector<Real>& volume_correction() const {
-    return vc_;
-  }
+  const std::vector<Real>& volume_correction() const { return state_; }
   /// Mutable volume correction, for tests.
-  std::vector<Real>& volume_correction() {
-    return vc_;
-  }
+  std::vector<Real>& volume_correction() { return state_; }
   /// The model.
-  const DruckerPragerSand& model() const {
-    return model_;
-  }
+  const DruckerPragerSand& model() const { return model_; }
 
  private:
   DruckerPragerSand model_;
   Real rho0_;
-  std::vector<Real> vc_;
 };
 
 }  // namespace mpm::materials

@@ -13,6 +13,7 @@
 #include "engine/core/hash.h"
 #include "engine/core/reduce.h"
 #include "materials/corotated.h"
+#include "materials/plastic_group.h"
 #include "materials/svd.h"
 
 namespace mpm::materials {
@@ -104,74 +105,52 @@ struct SnowPlasticity {
 };
 
 /// MaterialGroup for snow: per-particle Jp, allocated for this group's particles only.
-class SnowGroup final : public MaterialGroup {
+class SnowGroup final : public PlasticGroup<SnowGroup> {
  public:
   /// `elastic` holds the unhardened mu0 and lambda0; `count` particles start with
   /// plastic.initial_Jp(p, x[p], seed) (1 unless initial_Jp_spread > 0). `x`, the sampled
   /// positions, may be empty (a group rebuilt to take restored state): Jp then starts at 1.
   SnowGroup(const FixedCorotated& elastic, const SnowPlasticity& plastic, Real rho0,
             std::size_t count, std::span<const Vec3> x = {}, std::uint64_t seed = 1)
-      : elastic_(elastic), plastic_(plastic), rho0_(rho0), Jp_(count, 1) {
+      : PlasticGroup(std::vector<Real>(count, 1)),
+        elastic_(elastic),
+        plastic_(plastic),
+        rho0_(rho0) {
     const bool spatial = plastic_.initial_Jp_correlation > 0;
     if (spatial && x.size() != count) return;
     for (std::size_t p = 0; p < count; ++p)
-      Jp_[p] = plastic_.initial_Jp(p, spatial ? x[p] : Vec3::Zero(), seed);
+      state_[p] = plastic_.initial_Jp(p, spatial ? x[p] : Vec3::Zero(), seed);
   }
 
-  void compute_stress(std::span<const StoredMat3> F, Real volume0,
-                      std::span<StoredMat3> out) const override {
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p)
-      out[p] = to_stored(-volume0 * hardened(p).kirchhoff(to_real(F[p])));
-  }
-
-  bool has_plasticity() const override { return true; }
-
-  void apply_plasticity(std::span<StoredMat3> F) override {
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p) {
-      Mat3 Fe = to_real(F[p]);
-      if (plastic_.project(Fe, Jp_[p])) F[p] = to_stored(Fe);
-    }
-  }
-
-  Real max_wave_speed(std::span<const StoredMat3> F) const override {
-    Real c = 0;
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-    // Hardened moduli, at the current density rho0 / (Je Jp) (references.md, "Time step").
-#pragma omp parallel for schedule(static) reduction(max : c) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p) {
-      const FixedCorotated m = hardened(p);
-      const Real J = std::max(std::abs(to_real(F[p]).determinant()) * Jp_[p], Real(1e-6));
-      c = std::max(c, std::sqrt((m.lambda + 2 * m.mu) * J / rho0_));
-    }
-    return c;
-  }
-
-  Real elastic_energy(std::span<const StoredMat3> F, Real volume0) const override {
-    return volume0 *
-           sum_chunks(F.size(), [&](std::size_t p) { return hardened(p).energy(to_real(F[p])); });
-  }
-
-  std::span<Real> state() override { return Jp_; }
-
-  /// Plastic volume ratio Jp of each particle in the group.
-  const std::vector<Real>& Jp() const { return Jp_; }
-  /// Mutable Jp, for tests and restarts.
-  std::vector<Real>& Jp() { return Jp_; }
-
- private:
-  FixedCorotated hardened(std::ptrdiff_t p) const {
-    const Real h = plastic_.hardening_factor(Jp_[p]);
+  /// The elastic model of particle p: the moduli hardened by its Jp (PlasticGroup).
+  FixedCorotated elastic_model(std::ptrdiff_t p) const {
+    const Real h = plastic_.hardening_factor(state_[p]);
     return {elastic_.mu * h, elastic_.lambda * h};
   }
 
+  /// The largest wave speed of particle p at F (PlasticGroup): hardened moduli, at the
+  /// current density rho0 / (Je Jp) (references.md, "Time step"), m/s.
+  Real wave_speed(const Mat3& F, std::ptrdiff_t p) const {
+    const FixedCorotated m = elastic_model(p);
+    const Real J = std::max(std::abs(F.determinant()) * state_[p], Real(1e-6));
+    return std::sqrt((m.lambda + 2 * m.mu) * J / rho0_);
+  }
+
+  /// Clamps particle p's singular values and moves the rest into its Jp (PlasticGroup).
+  void project(StoredMat3& F, std::ptrdiff_t p) {
+    Mat3 Fe = to_real(F);
+    if (plastic_.project(Fe, state_[p])) F = to_stored(Fe);
+  }
+
+  /// Plastic volume ratio Jp of each particle in the group.
+  const std::vector<Real>& Jp() const { return state_; }
+  /// Mutable Jp, for tests and restarts.
+  std::vector<Real>& Jp() { return state_; }
+
+ private:
   FixedCorotated elastic_;
   SnowPlasticity plastic_;
   Real rho0_;
-  std::vector<Real> Jp_;
 };
 
 }  // namespace mpm::materials

@@ -91,26 +91,20 @@ class WaterGroup final : public MaterialGroup {
   void compute_stress(std::span<const StoredMat3> F, Real volume0,
                       std::span<StoredMat3> out) const override {
     if (rate_.empty()) return model_stress(model_, F, volume0, out);
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p) {
+    for_each_particle(F.size(), [&](std::ptrdiff_t p) {
       const Mat3 Fp = to_real(F[p]);
       const Mat3 tau = model_.kirchhoff(Fp) + 2 * eta_ * Fp.determinant() * rate(p);
       out[p] = to_stored(-volume0 * tau);
-    }
+    });
   }
 
-  bool has_plasticity() const override {
-    return true;
-  }
+  bool has_plasticity() const override { return true; }
 
   void apply_plasticity(std::span<StoredMat3> F) override { apply_plasticity_step(F, 0); }
 
   /// Keeps the deviatoric strain rate of this F update (viscosity only), then F = J^(1/3) I.
   void apply_plasticity_step(std::span<StoredMat3> F, Real dt) override {
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(F.size());
-#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
-    for (std::ptrdiff_t p = 0; p < n; ++p) {
+    for_each_particle(F.size(), [&](std::ptrdiff_t p) {
       const Mat3 Fp = to_real(F[p]);
       if (!rate_.empty()) {
         const Mat3 D = deviatoric_rate(Fp, dt);
@@ -119,7 +113,7 @@ class WaterGroup final : public MaterialGroup {
         r[5] = D(1, 2);
       }
       F[p] = to_stored(TaitWater::project(Fp));
-    }
+    });
   }
 
   Real max_wave_speed(std::span<const StoredMat3> F) const override {
@@ -150,9 +144,7 @@ class WaterGroup final : public MaterialGroup {
   std::span<Real> state() override { return rate_; }
 
   /// The model.
-  const TaitWater& model() const {
-    return model_;
-  }
+  const TaitWater& model() const { return model_; }
 
  private:
   Mat3 rate(std::ptrdiff_t p) const {

@@ -33,37 +33,14 @@
 
 namespace {
 
-constexpr const char* kUsage = R"(mpm - a Material Point Method engine for the CPU
+/// The usage text's first lines, before the commands.
+constexpr const char* kUsageHead = R"(mpm - a Material Point Method engine for the CPU
 
 Usage:
-  mpm run SCENE.yaml [options]   simulate and write frames and report.yaml
-  mpm validate SCENE.yaml [--set KEY=VALUE ...] [--plugin PATH ...] [--allow-scene-plugins]
-                                 check a scene and print what it would simulate
-  mpm materials [SCENE.yaml | PLUGIN.so] [--plugin PATH ...]
-                                 list every registered material (and a scene's or a file's
-                                 plugins) with its keys, units, defaults and ranges
-  mpm preview DIR [--fps N]      join DIR/preview/frame_*.png into DIR/preview.mp4 (ffmpeg)
-  mpm surface DIR [--format mesh,vdb]
-                                 build the surfaces of a finished run from its frame_*.h5
-                                 (mesh: frame_NNNNN_<object>.ply; vdb: frame_NNNNN.vdb;
-                                 default mesh), as the mesh and vdb formats write them
-  mpm bench [--cases jello,snow,sparse,two_cubes,machine] [--particles N] [--threads N]
-            [--csv FILE] [--simd on|off]
-                                 time standard cases (median of 3 after a warm-up;
-                                 two_cubes: the whole scene, once; machine: peak FLOP
-                                 rate and memory bandwidth; --simd off: the scalar path)
-  mpm study [--quick] [--cases SWEEP,...] -o DIR
-                                 run the validation cases over sweeps of h, particles per
-                                 cell, CFL, dt, transfer, kernel, grid precision and SIMD;
-                                 write DIR/study.csv and DIR/series.csv (docs/accuracy.md)
-  mpm golden SCENE.yaml --frames N -o FILE [--force]
-                                 run N frames and write the run summary to FILE (a golden;
-                                 --force replaces an existing FILE)
-  mpm compare A B [--tol QUANTITY=VALUE ...] [--frames N]
-                                 compare two runs (output folders or summary files), B being
-                                 the reference, over B's frames (or frames 0..N); exit 0
-                                 within tolerance, 1 not, 2 bad input
-  mpm --help | --version
+)";
+
+/// The usage text after the commands: the options of run, the exit codes, signals.
+constexpr const char* kUsageTail = R"(  mpm --help | --version
 
 Options of run:
   --out DIR          write frames and report.yaml to DIR (default: the scene's output.directory)
@@ -89,9 +66,14 @@ Ctrl-C or SIGTERM stops a run at the end of the current frame, after writing the
 and the checkpoint; a second one stops it at once (the last checkpoint written stays).
 )";
 
+/// The commands of `mpm`, in the order of kCommands (and of the usage text).
+enum class Command { run, validate, materials, preview, surface, bench, study, golden, compare };
+
 /// The command line.
 struct Args {
-  std::string command, scene, second, out, resume, formats, output_file, log_level = "info";
+  std::string name;                ///< The command's word as given ("" if none).
+  Command command = Command::run;  ///< The command, when `name` is one of kCommands.
+  std::string scene, second, out, resume, formats, output_file, log_level = "info";
   std::vector<std::string> tols;
   std::vector<std::string> given;  ///< The options given, in order (to refuse ignored ones).
   std::string cases, csv;
@@ -101,6 +83,81 @@ struct Args {
   std::vector<std::string> sets, plugins;
   bool quiet = false, force = false, quick = false, allow_scene_plugins = false;
 };
+
+int cmd_run(const Args& args);
+int cmd_materials(const Args& args);
+int cmd_preview(const Args& args);
+int cmd_surface(const Args& args);
+int cmd_bench(const Args& args);
+int cmd_study(const Args& args);
+int cmd_compare(const Args& args);
+
+/// One command of `mpm`: its word, its handler, how it runs and its lines of the usage text.
+struct CommandInfo {
+  Command command;              ///< The command.
+  const char* name;             ///< Its word on the command line.
+  int (*handler)(const Args&);  ///< Runs it; returns the exit code.
+  bool mpi;                     ///< Under mpirun it splits the scene over the ranks.
+  int operands;                 ///< Words after it: the scene or folder (compare: A and B).
+  const char* help;             ///< Its lines of the usage text (without the last newline).
+};
+
+/// Every command, in the usage text's order: the one list run_cli dispatches on (the help
+/// as it prints, so not formatted).
+// clang-format off
+constexpr CommandInfo kCommands[] = {
+    {Command::run, "run", cmd_run, true, 1,
+     R"(  mpm run SCENE.yaml [options]   simulate and write frames and report.yaml)"},
+    {Command::validate, "validate", cmd_run, true, 1,
+     R"(  mpm validate SCENE.yaml [--set KEY=VALUE ...] [--plugin PATH ...] [--allow-scene-plugins]
+                                 check a scene and print what it would simulate)"},
+    {Command::materials, "materials", cmd_materials, false, 1,
+     R"(  mpm materials [SCENE.yaml | PLUGIN.so] [--plugin PATH ...]
+                                 list every registered material (and a scene's or a file's
+                                 plugins) with its keys, units, defaults and ranges)"},
+    {Command::preview, "preview", cmd_preview, false, 1,
+     R"(  mpm preview DIR [--fps N]      join DIR/preview/frame_*.png into DIR/preview.mp4 (ffmpeg))"},
+    {Command::surface, "surface", cmd_surface, false, 1,
+     R"(  mpm surface DIR [--format mesh,vdb]
+                                 build the surfaces of a finished run from its frame_*.h5
+                                 (mesh: frame_NNNNN_<object>.ply; vdb: frame_NNNNN.vdb;
+                                 default mesh), as the mesh and vdb formats write them)"},
+    {Command::bench, "bench", cmd_bench, false, 1,
+     R"(  mpm bench [--cases jello,snow,sparse,two_cubes,machine] [--particles N] [--threads N]
+            [--csv FILE] [--simd on|off]
+                                 time standard cases (median of 3 after a warm-up;
+                                 two_cubes: the whole scene, once; machine: peak FLOP
+                                 rate and memory bandwidth; --simd off: the scalar path))"},
+    {Command::study, "study", cmd_study, false, 1,
+     R"(  mpm study [--quick] [--cases SWEEP,...] -o DIR
+                                 run the validation cases over sweeps of h, particles per
+                                 cell, CFL, dt, transfer, kernel, grid precision and SIMD;
+                                 write DIR/study.csv and DIR/series.csv (docs/accuracy.md))"},
+    {Command::golden, "golden", cmd_run, true, 1,
+     R"(  mpm golden SCENE.yaml --frames N -o FILE [--force]
+                                 run N frames and write the run summary to FILE (a golden;
+                                 --force replaces an existing FILE))"},
+    {Command::compare, "compare", cmd_compare, false, 2,
+     R"(  mpm compare A B [--tol QUANTITY=VALUE ...] [--frames N]
+                                 compare two runs (output folders or summary files), B being
+                                 the reference, over B's frames (or frames 0..N); exit 0
+                                 within tolerance, 1 not, 2 bad input)"},
+};
+// clang-format on
+
+/// The command named `name`, or nullptr.
+const CommandInfo* find_command(const std::string& name) {
+  for (const CommandInfo& c : kCommands)
+    if (name == c.name) return &c;
+  return nullptr;
+}
+
+/// The usage text of `mpm --help`: the commands' lines from kCommands between head and tail.
+std::string usage_text() {
+  std::string text = kUsageHead;
+  for (const CommandInfo& c : kCommands) text += std::string(c.help) + "\n";
+  return text + kUsageTail;
+}
 
 [[noreturn]] void usage_error(const std::string& what) {
   std::fprintf(stderr, "mpm: %s\n(run 'mpm --help' for usage)\n", what.c_str());
@@ -121,8 +178,7 @@ int parse_count(const std::string& flag, const std::string& value, int min) {
     if (used == value.size() && v >= min) return v;
   } catch (const std::exception&) {
   }
-  usage_error(flag + " expects a whole number >= " + std::to_string(min) + ", got '" + value +
-              "'");
+  usage_error(flag + " expects a whole number >= " + std::to_string(min) + ", got '" + value + "'");
 }
 
 Args parse_args(int argc, char** argv) {
@@ -136,7 +192,7 @@ Args parse_args(int argc, char** argv) {
     };
     if (w.size() > 1 && w[0] == '-') a.given.push_back(w);
     if (w == "--help" || w == "-h") {
-      std::fputs(kUsage, stdout);
+      std::fputs(usage_text().c_str(), stdout);
       std::exit(mpm::kExitOk);
     } else if (w == "--version") {
       std::printf("mpm %s (commit %s)\n", MPM_VERSION, mpm::git_commit());
@@ -183,17 +239,19 @@ Args parse_args(int argc, char** argv) {
       a.log_level = value();
     } else if (!w.empty() && w[0] == '-') {
       usage_error("unknown option '" + w + "'");
-    } else if (a.command.empty()) {
-      a.command = w;
+    } else if (a.name.empty()) {
+      a.name = w;
+      if (const CommandInfo* c = find_command(w)) a.command = c->command;
     } else if (a.scene.empty()) {
       a.scene = w;
-    } else if (a.command == "compare" && a.second.empty()) {
+    } else if (const CommandInfo* c = find_command(a.name);
+               c && c->operands == 2 && a.second.empty()) {
       a.second = w;
     } else {
       usage_error("unexpected argument '" + w + "'");
     }
   }
-  if (a.command.empty()) usage_error("no command given");
+  if (a.name.empty()) usage_error("no command given");
   return a;
 }
 
@@ -219,17 +277,14 @@ void check_options(const Args& a) {
       {"--fps", {"preview"}},
       {"--quick", {"study"}},
   };
-  const std::vector<std::string> known = {"run",   "validate", "materials", "preview", "bench",
-                                          "study", "golden",   "compare",   "surface"};
-  if (std::find(known.begin(), known.end(), a.command) == known.end()) return;
+  if (!find_command(a.name)) return;
   for (const std::string& flag : a.given)
     for (const auto& [option, commands] : kApplies) {
-      if (flag != option ||
-          std::find(commands.begin(), commands.end(), a.command) != commands.end())
+      if (flag != option || std::find(commands.begin(), commands.end(), a.name) != commands.end())
         continue;
       std::string list;
       for (const std::string& c : commands) list += (list.empty() ? "" : ", ") + c;
-      usage_error("'mpm " + a.command + "' does not take " + option + " (it would be ignored; " +
+      usage_error("'mpm " + a.name + "' does not take " + option + " (it would be ignored; " +
                   option + " is for: " + list + ")");
     }
 }
@@ -273,7 +328,8 @@ int cmd_materials(const Args& args) {
   mpm::MaterialRegistry registry = mpm::builtin_registry();
   try {
     for (const std::string& p : args.plugins) mpm::load_plugin(p, registry);
-    if (args.scene.ends_with(".so")) mpm::load_plugin(args.scene, registry);
+    if (args.scene.ends_with(".so"))
+      mpm::load_plugin(args.scene, registry);
     else if (!args.scene.empty())
       mpm::load_scene(args.scene, registry, {{}, true, plugin_policy(args)});
   } catch (const std::exception& e) {
@@ -292,8 +348,10 @@ int cmd_preview(const Args& args) {
     return mpm::kExitBadInput;
   }
   if (std::system("command -v ffmpeg > /dev/null 2>&1") != 0) {
-    std::fprintf(stderr, "error: ffmpeg is not installed (apt-get install ffmpeg); the PNG "
-                         "frames are in %s/preview/\n", dir.c_str());
+    std::fprintf(stderr,
+                 "error: ffmpeg is not installed (apt-get install ffmpeg); the PNG "
+                 "frames are in %s/preview/\n",
+                 dir.c_str());
     return mpm::kExitRunFailed;
   }
   const std::string cmd = "ffmpeg -loglevel error -y -framerate " +
@@ -311,9 +369,12 @@ int cmd_surface(const Args& args) {
   if (args.scene.empty()) usage_error("'mpm surface' needs a run's output folder");
   bool mesh = args.formats.empty(), vdb = false;
   for (const std::string& name : split_list(args.formats)) {
-    if (name == "mesh") mesh = true;
-    else if (name == "vdb") vdb = true;
-    else usage_error("'mpm surface' writes the formats mesh and vdb, not '" + name + "'");
+    if (name == "mesh")
+      mesh = true;
+    else if (name == "vdb")
+      vdb = true;
+    else
+      usage_error("'mpm surface' writes the formats mesh and vdb, not '" + name + "'");
   }
   if (!mesh && !vdb) usage_error("--format needs mesh, vdb or both");
   try {
@@ -372,8 +433,8 @@ int cmd_bench(const Args& args) {
 int cmd_compare(const Args& args) {
   if (args.scene.empty() || args.second.empty()) usage_error("'mpm compare' needs A and B");
   try {
-    const mpm::FrameSelection sel = mpm::select_frames(
-        mpm::read_summary(args.scene), mpm::read_summary(args.second), args.frames);
+    const mpm::FrameSelection sel = mpm::select_frames(mpm::read_summary(args.scene),
+                                                       mpm::read_summary(args.second), args.frames);
     if (!sel.error.empty()) {
       std::fprintf(stderr, "error: %s\n", sel.error.c_str());
       return mpm::kExitBadInput;
@@ -435,13 +496,13 @@ BuiltRun build_run(const Args& args, mpm::MaterialRegistry& registry) {
     } catch (const std::exception& e) {
       throw mpm::SceneError({"--resume"}, "", e.what());
     }
-  } else if (args.command == "golden") {
+  } else if (args.command == Command::golden) {
     out = std::filesystem::path(args.output_file).parent_path();
     if (out.empty()) out = ".";
     if (std::filesystem::exists(args.output_file) && !args.force)
       throw mpm::SceneError(
           {"-o"}, "", "'" + args.output_file + "' exists; give --force to replace this golden");
-  } else if (args.command == "run" && mpm::parallel::rank() == 0) {
+  } else if (args.command == Command::run && mpm::parallel::rank() == 0) {
     try {
       mpm::prepare_output_directory(out, args.force);
     } catch (const std::exception& e) {
@@ -455,11 +516,9 @@ BuiltRun build_run(const Args& args, mpm::MaterialRegistry& registry) {
 /// run, validate and golden: describe and validate the scene, build it, then run it.
 int cmd_run(const Args& args) {
   mpm::MaterialRegistry registry = mpm::builtin_registry();
-  if (args.command == "golden" && args.output_file.empty())
+  if (args.command == Command::golden && args.output_file.empty())
     usage_error("'mpm golden' needs -o FILE");
-  if (args.command != "run" && args.command != "validate" && args.command != "golden")
-    usage_error("unknown command '" + args.command + "'");
-  if (args.scene.empty()) usage_error("'mpm " + args.command + "' needs a scene file");
+  if (args.scene.empty()) usage_error("'mpm " + args.name + "' needs a scene file");
 
   BuiltRun built;
   try {
@@ -479,7 +538,7 @@ int cmd_run(const Args& args) {
   const bool root = mpm::parallel::rank() == 0;
   if (root)
     for (const std::string& w : mpm::scene_warnings(*sim)) spdlog::warn("{}", w);
-  if (args.command == "validate") {
+  if (args.command == Command::validate) {
     if (!root) return mpm::kExitOk;
     std::printf("%s: valid, %zu particles\n%s", args.scene.c_str(), sim->particles().size(),
                 mpm::scene_summary(*sim).c_str());
@@ -488,8 +547,9 @@ int cmd_run(const Args& args) {
 
   const int frames = args.frames.value_or(scene.simulation.frames);
   // A golden writes only its summary file; a run writes its folder.
-  const std::string written = args.command == "golden" ? "golden summary in " + args.output_file
-                                                       : "output in " + out.string();
+  const std::string written = args.command == Command::golden
+                                  ? "golden summary in " + args.output_file
+                                  : "output in " + out.string();
   if (!args.quiet && root) std::printf("%s", mpm::scene_summary(*sim).c_str());
   // Split over the ranks (each built the same state) after the one-rank checks above: a
   // grid too thin to split is the same error on every rank.
@@ -511,15 +571,16 @@ int cmd_run(const Args& args) {
   mpm::SummaryWriter golden(out, std::filesystem::path(args.output_file).filename().string());
   mpm::Progress progress(isatty(fileno(stderr)) != 0);
   std::vector<mpm::Observer*> observers;
-  if (args.command == "golden") observers = {&golden};
-  else observers = {&output, &summary};
+  if (args.command == Command::golden)
+    observers = {&golden};
+  else
+    observers = {&output, &summary};
   if (!args.quiet) observers.push_back(&progress);
   // Rank 0 holds every particle after each frame's gather; a collective observer (the
   // summary) reduces over every rank's particles before it, so it runs on every rank.
   if (!root) std::erase_if(observers, [](const mpm::Observer* o) { return !o->collective(); });
-  const mpm::RunResult r =
-      mpm::run_frames(*sim, frames, scene.simulation.frame_dt, observers, &g_stop,
-                      resumed_frame + 1);
+  const mpm::RunResult r = mpm::run_frames(*sim, frames, scene.simulation.frame_dt, observers,
+                                           &g_stop, resumed_frame + 1);
 
   // Each rank's own particles when no observer needed the frame's gather: count over the ranks.
   const std::size_t particles =
@@ -533,9 +594,9 @@ int cmd_run(const Args& args) {
       args.scene.c_str(), mpm::status_name(r.status), particles, r.frames_done, sim->substeps(),
       r.wall_seconds, r.wall_seconds > 0 ? steps / r.wall_seconds / 1e6 : 0.0,
       r.loop_seconds > 0 ? steps / r.loop_seconds / 1e6 : 0.0, written.c_str(),
-      r.warnings.empty()      ? ""
-      : args.command == "run" ? " (with warnings: see the log and report.yaml)"
-                              : " (with warnings: see the log)");
+      r.warnings.empty()             ? ""
+      : args.command == Command::run ? " (with warnings: see the log and report.yaml)"
+                                     : " (with warnings: see the log)");
   if (r.status != mpm::RunStatus::ok) {
     std::fprintf(stderr, "error: %s\n", r.message.c_str());
     return mpm::kExitRunFailed;
@@ -556,17 +617,14 @@ int run_cli(int argc, char** argv) {
   if (args.threads) omp_set_num_threads(*args.threads);
   check_options(args);
 
-  if (args.command == "materials") return cmd_materials(args);
-  if (args.command == "preview") return cmd_preview(args);
-  if (args.command == "study") return cmd_study(args);
-  if (args.command == "surface") return cmd_surface(args);
-  if (args.command == "bench") return cmd_bench(args);
-  if (args.command == "compare") return cmd_compare(args);
-  // Under mpirun the run and validate commands split the scene over the ranks
+  const CommandInfo* command = find_command(args.name);
+  if (!command) usage_error("unknown command '" + args.name + "'");
+  if (!command->mpi) return command->handler(args);
+  // Under mpirun the run, validate and golden commands split the scene over the ranks
   // (docs/distributed.md); rank 0 alone logs and prints.
   parallel::Session mpi(argc, argv);
   if (parallel::rank() > 0) spdlog::set_level(spdlog::level::err);
-  return cmd_run(args);
+  return command->handler(args);
 }
 
 }  // namespace mpm

@@ -66,8 +66,8 @@ FrameView frame_in_id_order(const Particles& p, Real time, int frame, FrameArray
     arrays.J[i] = to_real(p.F[q]).determinant();
     arrays.id[i] = i;
   }
-  return FrameView{arrays.x, arrays.v, arrays.object, arrays.J, static_cast<double>(time), frame,
-                   arrays.id};
+  return FrameView{arrays.x, arrays.v, arrays.object, arrays.J, static_cast<double>(time),
+                   frame,    arrays.id};
 }
 
 std::filesystem::path frame_path(const std::filesystem::path& dir, int frame) {
@@ -180,14 +180,16 @@ void prepare_output_directory(const std::filesystem::path& dir, bool force) {
   std::vector<fs::path> old;
   for (const auto& e : fs::directory_iterator(dir, ec)) {
     const std::string name = e.path().filename().string();
-    const bool frame = name.starts_with("frame_") &&
-                       (name.ends_with(".h5") || name.ends_with(".h5.tmp"));
+    const bool frame =
+        name.starts_with("frame_") && (name.ends_with(".h5") || name.ends_with(".h5.tmp"));
     if (frame || name == "report.yaml") old.push_back(e.path());
   }
   if (!old.empty() && !force)
-    throw std::runtime_error("output folder '" + dir.string() + "' already holds results of an "
-                             "earlier run (" + std::to_string(old.size()) +
-                             " files, e.g. " + old.front().filename().string() +
+    throw std::runtime_error("output folder '" + dir.string() +
+                             "' already holds results of an "
+                             "earlier run (" +
+                             std::to_string(old.size()) + " files, e.g. " +
+                             old.front().filename().string() +
                              "); use --force to replace them, or --out to write elsewhere");
   for (const fs::path& f : old) fs::remove(f, ec);
   const fs::path probe = dir / ".mpm_write_test";
@@ -252,7 +254,8 @@ void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, 
       const std::string name = "material_state_" + std::to_string(g);
       write_dataset(f.id, name.c_str(), H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 1, dims, st.data());
     }
-    write_attribute(f.id, "time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, static_cast<double>(sim.time()));
+    write_attribute(f.id, "time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE,
+                    static_cast<double>(sim.time()));
     write_attribute(f.id, "frame", H5T_STD_I32LE, H5T_NATIVE_INT, frame);
     write_attribute(f.id, "stored_real_bytes", H5T_STD_I32LE, H5T_NATIVE_INT,
                     static_cast<int>(sizeof(StoredReal)));
@@ -312,10 +315,10 @@ void FrameOutput::write_index(const Simulation& sim, int frame, std::size_t part
   std::vector<XdmfFrame> index;
   for (int k = 0; k <= frame; ++k)
     if (std::filesystem::exists(frame_path(dir_, k)))
-      index.push_back({frame_path(dir_, k).filename().string(),
-                       k == frame ? static_cast<double>(sim.time())
-                                  : k * sim.scene().simulation.frame_dt,
-                       particles});
+      index.push_back(
+          {frame_path(dir_, k).filename().string(),
+           k == frame ? static_cast<double>(sim.time()) : k * sim.scene().simulation.frame_dt,
+           particles});
   write_xdmf(dir_ / "frames.xmf", index);
 }
 
@@ -340,8 +343,12 @@ void FrameOutput::write(const Simulation& sim, int frame) {
         write_index(sim, frame, view.size());
         break;
       }
-      case Format::bgeo: write_bgeo(numbered(dir_, "frame_%05d.bgeo", frame), view); break;
-      case Format::ply: write_ply(numbered(dir_, "frame_%05d.ply", frame), view); break;
+      case Format::bgeo:
+        write_bgeo(numbered(dir_, "frame_%05d.bgeo", frame), view);
+        break;
+      case Format::ply:
+        write_ply(numbered(dir_, "frame_%05d.ply", frame), view);
+        break;
       case Format::png: {
         const GridDesc& g = sim.scene().grid;
         PreviewCamera cam = default_camera(g.origin, g.max);
@@ -361,7 +368,8 @@ void FrameOutput::write(const Simulation& sim, int frame) {
         break;
       }
       case Format::mesh:
-      case Format::vdb: break;  // below, both from one level set per object
+      case Format::vdb:
+        break;  // below, both from one level set per object
     }
   }
   const auto has = [&](Format f) {
@@ -396,8 +404,9 @@ void FrameOutput::checkpoint(const Simulation& sim, int frame) {
 void FrameOutput::on_start(const Simulation& sim, int) {
   std::error_code ec;
   std::filesystem::create_directories(dir_, ec);
-  if (ec) throw std::runtime_error("cannot create output folder '" + dir_.string() + "': " +
-                                   ec.message());
+  if (ec)
+    throw std::runtime_error("cannot create output folder '" + dir_.string() +
+                             "': " + ec.message());
   if (resumed_frame_ > 0) {
     last_frame_ = resumed_frame_;
     return;
@@ -408,8 +417,10 @@ void FrameOutput::on_start(const Simulation& sim, int) {
 }
 
 void FrameOutput::on_frame(const Simulation& sim, int frame) {
-  if (collective_) write_collective(sim, frame);
-  else write(sim, frame);
+  if (collective_)
+    write_collective(sim, frame);
+  else
+    write(sim, frame);
 }
 
 void FrameOutput::on_frame_gathered(const Simulation& sim, int frame) {
@@ -431,6 +442,60 @@ void FrameOutput::on_stop(const Simulation& sim, const RunResult&) {
   }
   seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
+
+namespace {
+
+/// report.yaml's split over MPI ranks (docs/distributed.md) for a run of `n` particles; one
+/// rank: no communication. `collective`: each rank wrote its own particles into the HDF5
+/// frames, without the frame's gather.
+void emit_rank_stats(YAML::Emitter& y, const Simulation& sim, std::size_t n, bool collective) {
+  parallel::DomainStats ds;
+  ds.particles = {n};
+  ds.comm_seconds = {0.0};
+  ds.bytes = {0};
+  if (const parallel::Domain* domain = parallel::domain_of(sim)) ds = domain->stats();
+  y << YAML::Key << "ranks" << YAML::Value << ds.ranks;
+  y << YAML::Key << "particles_per_rank" << YAML::Value << YAML::Flow << ds.particles;
+  y << YAML::Key << "collective_hdf5" << YAML::Value << collective;
+  y << YAML::Key << "load_imbalance" << YAML::Value << YAML::Flow << YAML::BeginMap << YAML::Key
+    << "max" << YAML::Value << ds.imbalance_max << YAML::Key << "mean" << YAML::Value
+    << ds.imbalance_mean << YAML::EndMap;
+  y << YAML::Key << "comm_seconds" << YAML::Value << YAML::Flow << ds.comm_seconds;
+  std::vector<double> per_substep;
+  for (std::uint64_t b : ds.bytes)
+    per_substep.push_back(ds.substeps ? static_cast<double>(b) / ds.substeps : 0.0);
+  y << YAML::Key << "comm_bytes_per_substep" << YAML::Value << YAML::Flow << per_substep;
+  y << YAML::Key << "halo_bytes_per_substep" << YAML::Value
+    << (ds.substeps ? static_cast<double>(ds.halo_bytes) / ds.substeps : 0.0);
+}
+
+/// report.yaml's objects, and how `mpm surface DIR` builds the same surfaces as the mesh and
+/// vdb formats (`s`).
+void emit_objects(YAML::Emitter& y, const Simulation& sim, const SurfaceDesc& s) {
+  y << YAML::Key << "objects" << YAML::Value << YAML::BeginSeq;
+  const std::vector<SurfaceObject> surfaces = surface_objects(sim.scene());
+  for (std::size_t k = 0; k < sim.objects().size(); ++k) {
+    const ObjectInfo& o = sim.objects()[k];
+    y << YAML::BeginMap;
+    y << YAML::Key << "name" << YAML::Value << o.name;
+    y << YAML::Key << "material" << YAML::Value << o.material;
+    y << YAML::Key << "particles" << YAML::Value << o.count;
+    y << YAML::Key << "mass" << YAML::Value << o.mass;
+    y << YAML::Key << "particle_spacing" << YAML::Value << surfaces[k].spacing;
+    y << YAML::EndMap;
+  }
+  y << YAML::EndSeq;
+  y << YAML::Key << "surface" << YAML::Value << YAML::BeginMap;
+  y << YAML::Key << "radius" << YAML::Value << s.radius;
+  y << YAML::Key << "voxel" << YAML::Value << s.voxel;
+  y << YAML::Key << "smoothing" << YAML::Value << s.smoothing;
+  y << YAML::Key << "normals" << YAML::Value << s.normals;
+  y << YAML::Key << "density" << YAML::Value << s.density;
+  y << YAML::Key << "velocity" << YAML::Value << s.velocity;
+  y << YAML::EndMap;
+}
+
+}  // namespace
 
 void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
   // Without the frame's gather each rank holds its own particles: count them over the ranks.
@@ -482,26 +547,7 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
   y << YAML::Key << "run_particle_steps_per_second" << YAML::Value
     << (r.wall_seconds > 0 ? steps / r.wall_seconds : 0.0);
   y << YAML::Key << "clamped_particles" << YAML::Value << sim.clamped_particles();
-  // The split over MPI ranks (docs/distributed.md); one rank: no communication.
-  parallel::DomainStats ds;
-  ds.particles = {n};
-  ds.comm_seconds = {0.0};
-  ds.bytes = {0};
-  if (const parallel::Domain* domain = parallel::domain_of(sim)) ds = domain->stats();
-  y << YAML::Key << "ranks" << YAML::Value << ds.ranks;
-  y << YAML::Key << "particles_per_rank" << YAML::Value << YAML::Flow << ds.particles;
-  // Each rank wrote its own particles into the HDF5 frames, without the frame's gather.
-  y << YAML::Key << "collective_hdf5" << YAML::Value << collective_;
-  y << YAML::Key << "load_imbalance" << YAML::Value << YAML::Flow << YAML::BeginMap
-    << YAML::Key << "max" << YAML::Value << ds.imbalance_max << YAML::Key << "mean"
-    << YAML::Value << ds.imbalance_mean << YAML::EndMap;
-  y << YAML::Key << "comm_seconds" << YAML::Value << YAML::Flow << ds.comm_seconds;
-  std::vector<double> per_substep;
-  for (std::uint64_t b : ds.bytes)
-    per_substep.push_back(ds.substeps ? static_cast<double>(b) / ds.substeps : 0.0);
-  y << YAML::Key << "comm_bytes_per_substep" << YAML::Value << YAML::Flow << per_substep;
-  y << YAML::Key << "halo_bytes_per_substep" << YAML::Value
-    << (ds.substeps ? static_cast<double>(ds.halo_bytes) / ds.substeps : 0.0);
+  emit_rank_stats(y, sim, n, collective_);
   y << YAML::Key << "stages" << YAML::Value << YAML::BeginMap;
   for (const auto& [name, seconds] : sim.stage_seconds())
     y << YAML::Key << name << YAML::Value << seconds;
@@ -511,34 +557,12 @@ void FrameOutput::on_finish(const Simulation& sim, const RunResult& r) {
   y << YAML::Key << "energy_max" << YAML::Value << r.energy_max;
   y << YAML::Key << "frame_steps" << YAML::Value << YAML::BeginSeq;
   for (const FrameSteps& f : r.steps)
-    y << YAML::Flow << YAML::BeginMap << YAML::Key << "frame" << YAML::Value << f.frame
-      << YAML::Key << "substeps" << YAML::Value << f.substeps << YAML::Key << "dt_min"
-      << YAML::Value << f.dt_min << YAML::Key << "dt_max" << YAML::Value << f.dt_max
-      << YAML::EndMap;
+    y << YAML::Flow << YAML::BeginMap << YAML::Key << "frame" << YAML::Value << f.frame << YAML::Key
+      << "substeps" << YAML::Value << f.substeps << YAML::Key << "dt_min" << YAML::Value << f.dt_min
+      << YAML::Key << "dt_max" << YAML::Value << f.dt_max << YAML::EndMap;
   y << YAML::EndSeq;
-  y << YAML::Key << "objects" << YAML::Value << YAML::BeginSeq;
-  const std::vector<SurfaceObject> surfaces = surface_objects(sim.scene());
-  for (std::size_t k = 0; k < sim.objects().size(); ++k) {
-    const ObjectInfo& o = sim.objects()[k];
-    y << YAML::BeginMap;
-    y << YAML::Key << "name" << YAML::Value << o.name;
-    y << YAML::Key << "material" << YAML::Value << o.material;
-    y << YAML::Key << "particles" << YAML::Value << o.count;
-    y << YAML::Key << "mass" << YAML::Value << o.mass;
-    y << YAML::Key << "particle_spacing" << YAML::Value << surfaces[k].spacing;
-    y << YAML::EndMap;
-  }
-  y << YAML::EndSeq;
-  // How `mpm surface DIR` builds the same surfaces as the mesh and vdb formats.
-  const SurfaceDesc& s = desc_.surface;
-  y << YAML::Key << "surface" << YAML::Value << YAML::BeginMap;
-  y << YAML::Key << "radius" << YAML::Value << s.radius;
-  y << YAML::Key << "voxel" << YAML::Value << s.voxel;
-  y << YAML::Key << "smoothing" << YAML::Value << s.smoothing;
-  y << YAML::Key << "normals" << YAML::Value << s.normals;
-  y << YAML::Key << "density" << YAML::Value << s.density;
-  y << YAML::Key << "velocity" << YAML::Value << s.velocity;
-  y << YAML::EndMap << YAML::EndMap;
+  emit_objects(y, sim, desc_.surface);
+  y << YAML::EndMap;
 
   std::error_code ec;
   std::filesystem::create_directories(dir_, ec);

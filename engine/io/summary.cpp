@@ -53,6 +53,104 @@ const Quantity kQuantities[] = {
 // ---------------------------------------------------------------------------------------------
 // Summarize
 
+namespace {
+
+/// An object's sums over its particles, for its summary.
+struct Sums {
+  double mass = 0, speed_sum = 0, max_speed = 0, kinetic = 0, gravitational = 0;
+  Vec3 mx = Vec3::Zero(), x_sum = Vec3::Zero(), momentum = Vec3::Zero();
+  Vec3 angular = Vec3::Zero();
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
+  Vec3 hi = Vec3::Constant(-std::numeric_limits<double>::infinity());
+};
+
+/// The sums of `a` and `b` (b's particles after a's).
+Sums combine(Sums a, const Sums& b) {
+  a.mass += b.mass;
+  a.mx += b.mx;
+  a.x_sum += b.x_sum;
+  a.lo = a.lo.cwiseMin(b.lo);
+  a.hi = a.hi.cwiseMax(b.hi);
+  a.speed_sum += b.speed_sum;
+  a.max_speed = std::max(a.max_speed, b.max_speed);
+  a.kinetic += b.kinetic;
+  a.gravitational += b.gravitational;
+  a.momentum += b.momentum;
+  a.angular += b.angular;
+  return a;
+}
+
+/// The sums of particles [first, end) of `p` (gravity `g`, potential energy and angular
+/// momentum about `origin`), over fixed chunks combined in chunk order: the same numbers on
+/// any thread count.
+Sums particle_sums(const Particles& p, std::size_t first, std::size_t end, const Vec3& origin,
+                   const Vec3& g) {
+  return reduce_chunks(
+      end - first, Sums{},
+      [&](std::size_t a, std::size_t b) {
+        Sums c;
+        for (std::size_t q = first + a; q < first + b; ++q) {
+          const double m = p.mass(q);
+          const Vec3& x = p.x[q];
+          const Vec3& v = p.v[q];
+          const Vec3 r = x - origin;
+          const double speed = v.norm();
+          c.mass += m;
+          c.mx += m * x;
+          c.x_sum += x;
+          c.lo = c.lo.cwiseMin(x);
+          c.hi = c.hi.cwiseMax(x);
+          c.speed_sum += speed;
+          c.max_speed = std::max(c.max_speed, speed);
+          c.kinetic += 0.5 * m * v.squaredNorm();
+          c.gravitational -= m * g.dot(r);
+          c.momentum += m * v;
+          c.angular += m * r.cross(v);
+        }
+        return c;
+      },
+      combine);
+}
+
+/// The elastic energy of object `o` (particles up to `end`): one material range per object
+/// in practice; any range lying inside the object counts.
+double object_elastic_energy(const Simulation& sim, const ObjectInfo& o, std::size_t end) {
+  double elastic = 0;
+  const std::vector<Real>& range_energy = sim.range_elastic_energies();
+  for (std::size_t k = 0; k < sim.materials().size(); ++k) {
+    const MaterialRange& r = sim.materials()[k];
+    if (r.count == 0 || !r.material || r.first < o.first || r.first + r.count > end) continue;
+    elastic += range_energy[k];
+  }
+  return elastic;
+}
+
+/// With more than one rank: each rank's sums `t`, elastic energy and particle count `n` of
+/// its own particles, replaced by their combination in rank order on every rank (the same
+/// bits every run); no particle leaves its rank.
+void combine_over_ranks(Sums& t, double& elastic, std::size_t& n) {
+  std::vector<double> mine = {t.mass,          t.speed_sum, t.max_speed,           t.kinetic,
+                              t.gravitational, elastic,     static_cast<double>(n)};
+  for (const Vec3* v : {&t.mx, &t.x_sum, &t.momentum, &t.angular, &t.lo, &t.hi})
+    mine.insert(mine.end(), v->data(), v->data() + 3);
+  const std::vector<double> all = parallel::all_gather(mine);
+  elastic = 0;
+  n = 0;
+  for (std::size_t at = 0; at < all.size(); at += mine.size()) {
+    const double* d = &all[at];
+    Sums part;
+    part.mass = d[0], part.speed_sum = d[1], part.max_speed = d[2], part.kinetic = d[3];
+    part.gravitational = d[4];
+    Vec3* fields[] = {&part.mx, &part.x_sum, &part.momentum, &part.angular, &part.lo, &part.hi};
+    for (int f = 0; f < 6; ++f) *fields[f] = Vec3(d[7 + 3 * f], d[8 + 3 * f], d[9 + 3 * f]);
+    t = at == 0 ? part : combine(t, part);
+    elastic += d[5];
+    n += static_cast<std::size_t>(d[6]);
+  }
+}
+
+}  // namespace
+
 FrameSummary summarize(const Simulation& sim, int frame) {
   const Particles& p = sim.particles();
   const Vec3 g = sim.scene().simulation.gravity;
@@ -67,84 +165,12 @@ FrameSummary summarize(const Simulation& sim, int frame) {
     ObjectSummary s;
     s.name = o.name;
     s.particles = o.count;
-    // Sums over fixed chunks, combined in chunk order: the same numbers on any thread count.
-    struct Sums {
-      double mass = 0, speed_sum = 0, max_speed = 0, kinetic = 0, gravitational = 0;
-      Vec3 mx = Vec3::Zero(), x_sum = Vec3::Zero(), momentum = Vec3::Zero();
-      Vec3 angular = Vec3::Zero();
-      Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
-      Vec3 hi = Vec3::Constant(-std::numeric_limits<double>::infinity());
-    };
-    const auto combine = [](Sums a, const Sums& b) {
-      a.mass += b.mass;
-      a.mx += b.mx;
-      a.x_sum += b.x_sum;
-      a.lo = a.lo.cwiseMin(b.lo);
-      a.hi = a.hi.cwiseMax(b.hi);
-      a.speed_sum += b.speed_sum;
-      a.max_speed = std::max(a.max_speed, b.max_speed);
-      a.kinetic += b.kinetic;
-      a.gravitational += b.gravitational;
-      a.momentum += b.momentum;
-      a.angular += b.angular;
-      return a;
-    };
     const std::size_t first = std::min(o.first, end);
-    Sums t = reduce_chunks(
-        end - first, Sums{},
-        [&](std::size_t a, std::size_t b) {
-          Sums c;
-          for (std::size_t q = first + a; q < first + b; ++q) {
-            const double m = p.mass(q);
-            const Vec3& x = p.x[q];
-            const Vec3& v = p.v[q];
-            const Vec3 r = x - origin;
-            const double speed = v.norm();
-            c.mass += m;
-            c.mx += m * x;
-            c.x_sum += x;
-            c.lo = c.lo.cwiseMin(x);
-            c.hi = c.hi.cwiseMax(x);
-            c.speed_sum += speed;
-            c.max_speed = std::max(c.max_speed, speed);
-            c.kinetic += 0.5 * m * v.squaredNorm();
-            c.gravitational -= m * g.dot(r);
-            c.momentum += m * v;
-            c.angular += m * r.cross(v);
-          }
-          return c;
-        },
-        combine);
+    Sums t = particle_sums(p, first, end, origin, g);
     std::size_t n = end - first;
-    // One material range per object in practice; any range lying inside the object counts.
-    double elastic = 0;
-    const std::vector<Real>& range_energy = sim.range_elastic_energies();
-    for (std::size_t k = 0; k < sim.materials().size(); ++k) {
-      const MaterialRange& r = sim.materials()[k];
-      if (r.count == 0 || !r.material || r.first < o.first || r.first + r.count > end) continue;
-      elastic += range_energy[k];
-    }
+    double elastic = object_elastic_energy(sim, o, end);
     if (sim.domain()) {
-      // Each rank's sums of its own particles, combined in rank order on every rank (the
-      // same bits every run); no particle leaves its rank.
-      std::vector<double> mine = {t.mass, t.speed_sum, t.max_speed, t.kinetic, t.gravitational,
-                                  elastic, static_cast<double>(n)};
-      for (const Vec3* v : {&t.mx, &t.x_sum, &t.momentum, &t.angular, &t.lo, &t.hi})
-        mine.insert(mine.end(), v->data(), v->data() + 3);
-      const std::vector<double> all = parallel::all_gather(mine);
-      elastic = 0;
-      n = 0;
-      for (std::size_t at = 0; at < all.size(); at += mine.size()) {
-        const double* d = &all[at];
-        Sums part;
-        part.mass = d[0], part.speed_sum = d[1], part.max_speed = d[2], part.kinetic = d[3];
-        part.gravitational = d[4];
-        Vec3* fields[] = {&part.mx, &part.x_sum, &part.momentum, &part.angular, &part.lo, &part.hi};
-        for (int f = 0; f < 6; ++f) *fields[f] = Vec3(d[7 + 3 * f], d[8 + 3 * f], d[9 + 3 * f]);
-        t = at == 0 ? part : combine(t, part);
-        elastic += d[5];
-        n += static_cast<std::size_t>(d[6]);
-      }
+      combine_over_ranks(t, elastic, n);
       s.particles = n;
     }
     if (t.mass > 0) {
@@ -613,7 +639,8 @@ FrameSelection select_frames(const RunSummary& a, const RunSummary& b,
   }
   if (!b.frames.empty() && a.frames.size() > b.frames.size()) {
     sel.a.frames.resize(b.frames.size());
-    sel.note = "compared frames " + span(b) + ", all of the reference's; the run goes on to frame " +
+    sel.note = "compared frames " + span(b) +
+               ", all of the reference's; the run goes on to frame " +
                std::to_string(a.frames.back().frame) + ": its frames after " +
                std::to_string(b.frames.back().frame) + " are not compared";
   }

@@ -56,6 +56,87 @@ std::vector<int> base_layers(const Simulation& sim, int axis) {
   return layer;
 }
 
+/// One rank's contacts and the nodes they reach (`local`), packed for the solve on rank 0.
+std::vector<char> pack_contacts(const ContactState& local) {
+  std::vector<char> buf;
+  const int S = local.stencil;
+  put(buf, local.size());
+  put(buf, S);
+  put(buf, local.node_velocity.size());
+  for (std::size_t c = 0; c < local.size(); ++c) {
+    put(buf, local.normal[c]);
+    put(buf, local.wall_velocity[c]);
+    put(buf, local.gap[c]);
+    put(buf, local.boundary[c]);
+    put(buf, local.friction[c]);
+    put(buf, local.patch[c]);
+    for (int t = 0; t < S; ++t) {
+      put(buf, local.weights[c * S + t]);
+      put(buf, local.nodes[c * S + t]);
+    }
+  }
+  for (std::size_t i = 0; i < local.node_velocity.size(); ++i) {
+    put(buf, local.node_key[i]);
+    put(buf, local.node_velocity[i]);
+    put(buf, local.node_inv_mass[i]);
+  }
+  return buf;
+}
+
+/// Every rank's packed contacts (`in`, pack_contacts, in rank order) as one set: nodes merged
+/// by key (a ghost and its owner hold the same mass and velocity after halo_velocity),
+/// contacts in rank order; `patches` wall and object patches.
+ContactState merge_contacts(const std::vector<std::vector<char>>& in, std::size_t patches) {
+  const int n = static_cast<int>(in.size());
+  ContactState all;
+  all.patches = patches;
+  all.node_velocity.assign(1, Vec3::Zero());
+  all.node_inv_mass.assign(1, 0);
+  all.node_key.assign(1, ~std::uint64_t{0});
+  std::unordered_map<std::uint64_t, std::uint32_t> merged;
+  for (int r = 0; r < n; ++r) {
+    const std::vector<char>& b = in[r];
+    std::size_t pos = 0;
+    const auto nc = take<std::size_t>(b, pos);
+    const int s = take<int>(b, pos);
+    const auto nn = take<std::size_t>(b, pos);
+    if (nc == 0) continue;
+    all.stencil = s;
+    const std::size_t first = all.size();
+    std::vector<std::uint32_t> refs;
+    for (std::size_t c = 0; c < nc; ++c) {
+      all.normal.push_back(take<Vec3>(b, pos));
+      all.wall_velocity.push_back(take<Vec3>(b, pos));
+      all.gap.push_back(take<Real>(b, pos));
+      all.boundary.push_back(take<Boundary>(b, pos));
+      all.friction.push_back(take<Real>(b, pos));
+      all.patch.push_back(take<std::uint32_t>(b, pos));
+      for (int t = 0; t < s; ++t) {
+        all.weights.push_back(take<Real>(b, pos));
+        refs.push_back(take<std::uint32_t>(b, pos));
+      }
+    }
+    std::vector<std::uint32_t> id(nn, 0);
+    for (std::size_t i = 0; i < nn; ++i) {
+      const auto key = take<std::uint64_t>(b, pos);
+      const auto v = take<Vec3>(b, pos);
+      const auto inv_m = take<Real>(b, pos);
+      if (key == ~std::uint64_t{0}) continue;  // the rank's "no node" entry
+      const auto [it, added] = merged.emplace(key, static_cast<std::uint32_t>(all.node_key.size()));
+      if (added) {
+        all.node_key.push_back(key);
+        all.node_velocity.push_back(v);
+        all.node_inv_mass.push_back(inv_m);
+      }
+      id[i] = it->second;
+    }
+    for (std::size_t e = 0; e < refs.size(); ++e) all.nodes.push_back(id[refs[e]]);
+    all.particle.resize(first + nc);  // unused by the solve
+    all.point.resize(first + nc);
+  }
+  return all;
+}
+
 }  // namespace
 
 int Slabs::owner_of_layer(int layer) const {
@@ -199,27 +280,7 @@ Real Domain::solve_contact(const ContactSettings& settings, Real dt, ContactStat
   // Every rank's contacts and the nodes they reach, to rank 0.
   std::vector<std::vector<char>> out(n);
   std::vector<char>& buf = out[0];
-  const int S = local.stencil;
-  put(buf, local.size());
-  put(buf, S);
-  put(buf, local.node_velocity.size());
-  for (std::size_t c = 0; c < local.size(); ++c) {
-    put(buf, local.normal[c]);
-    put(buf, local.wall_velocity[c]);
-    put(buf, local.gap[c]);
-    put(buf, local.boundary[c]);
-    put(buf, local.friction[c]);
-    put(buf, local.patch[c]);
-    for (int t = 0; t < S; ++t) {
-      put(buf, local.weights[c * S + t]);
-      put(buf, local.nodes[c * S + t]);
-    }
-  }
-  for (std::size_t i = 0; i < local.node_velocity.size(); ++i) {
-    put(buf, local.node_key[i]);
-    put(buf, local.node_velocity[i]);
-    put(buf, local.node_inv_mass[i]);
-  }
+  buf = pack_contacts(local);
   halo_local_ += buf.size();
   const std::vector<std::vector<char>> in = all_to_all(out);
   // Rank 0 solves them as one set, nodes merged by key (a ghost and its owner hold the same
@@ -227,53 +288,7 @@ Real Domain::solve_contact(const ContactSettings& settings, Real dt, ContactStat
   Real work = 0;
   std::vector<std::vector<char>> back(n);
   if (me == 0) {
-    ContactState all;
-    all.patches = local.patches;
-    all.node_velocity.assign(1, Vec3::Zero());
-    all.node_inv_mass.assign(1, 0);
-    all.node_key.assign(1, ~std::uint64_t{0});
-    std::unordered_map<std::uint64_t, std::uint32_t> merged;
-    for (int r = 0; r < n; ++r) {
-      const std::vector<char>& b = in[r];
-      std::size_t pos = 0;
-      const auto nc = take<std::size_t>(b, pos);
-      const int s = take<int>(b, pos);
-      const auto nn = take<std::size_t>(b, pos);
-      if (nc == 0) continue;
-      all.stencil = s;
-      const std::size_t first = all.size();
-      std::vector<std::uint32_t> refs;
-      for (std::size_t c = 0; c < nc; ++c) {
-        all.normal.push_back(take<Vec3>(b, pos));
-        all.wall_velocity.push_back(take<Vec3>(b, pos));
-        all.gap.push_back(take<Real>(b, pos));
-        all.boundary.push_back(take<Boundary>(b, pos));
-        all.friction.push_back(take<Real>(b, pos));
-        all.patch.push_back(take<std::uint32_t>(b, pos));
-        for (int t = 0; t < s; ++t) {
-          all.weights.push_back(take<Real>(b, pos));
-          refs.push_back(take<std::uint32_t>(b, pos));
-        }
-      }
-      std::vector<std::uint32_t> id(nn, 0);
-      for (std::size_t i = 0; i < nn; ++i) {
-        const auto key = take<std::uint64_t>(b, pos);
-        const auto v = take<Vec3>(b, pos);
-        const auto inv_m = take<Real>(b, pos);
-        if (key == ~std::uint64_t{0}) continue;  // the rank's "no node" entry
-        const auto [it, added] =
-            merged.emplace(key, static_cast<std::uint32_t>(all.node_key.size()));
-        if (added) {
-          all.node_key.push_back(key);
-          all.node_velocity.push_back(v);
-          all.node_inv_mass.push_back(inv_m);
-        }
-        id[i] = it->second;
-      }
-      for (std::size_t e = 0; e < refs.size(); ++e) all.nodes.push_back(id[refs[e]]);
-      all.particle.resize(first + nc);  // unused by the solve
-      all.point.resize(first + nc);
-    }
+    ContactState all = merge_contacts(in, local.patches);
     if (all.size() > 0) work = mpm::solve_contact(settings, dt, all);
     std::vector<char> result;
     for (std::size_t i = 1; i < all.node_key.size(); ++i) {

@@ -132,59 +132,24 @@ void ghost_weights(const Stencil<KernelTraits<K>::kNodes>& s, const Vec3& point,
   }
 }
 
-/// The contacts' stencils (weights, grid storage indices), then compact node indices in
-/// first-touch order with each node's velocity, inverse mass and key.
-template <int N>
-void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, ContactState& st) {
-  constexpr int S = N * N * N;
+/// A stencil node that takes no part in a contact (outside the grid, unallocated or massless).
+constexpr std::size_t kNoNode = ~std::size_t{0};
+
+/// Keeps only the contacts that act (st's arrays, the stencil weights and the grid storage
+/// indices `storage_index` of each contact's S nodes, kNoNode for none, compacted in order):
+/// touching, or closing their gap within the substep of `dt` at the velocity interpolated now
+/// (the solve's impulses only push particles away).
+void keep_acting_contacts(Real dt, const Grid& g, ContactState& st,
+                          std::vector<std::size_t>& storage_index) {
+  const int S = st.stencil;
   const std::size_t nc = st.size();
-  const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(nc);
-  constexpr std::size_t kNone = ~std::size_t{0};
-  std::vector<std::size_t> storage_index(nc * S);
-  st.stencil = S;
-  st.weights.resize(nc * S);
-  // The stencil of the contact point, on the wall: the velocity there is the contact's, so a
-  // ball rolls on the wall, not on its particles' centres; its impulse enters with the ghost
-  // weights. Nodes without mass take no part, and the weights of the others are scaled to
-  // sum to one.
-#pragma omp parallel for schedule(static) if (sn * S >= kParallelMinItems)
-  for (std::ptrdiff_t c = 0; c < sn; ++c) {
-    dispatch_kernel(kernel, [&]<Kernel K>() {
-      if constexpr (KernelTraits<K>::kNodes == N) {
-        const auto s = make_stencil<K>(st.point[c], g.origin, g.inv_h);
-        Real ghost[S];
-        ghost_weights<K>(s, st.point[c], st.normal[c], std::cbrt(p.volume0(st.particle[c])),
-                         st.mls_quadrature, g, ghost);
-        int t = 0;
-        Real sum = 0;
-        for (int i = 0; i < N; ++i)
-          for (int j = 0; j < N; ++j)
-            for (int k = 0; k < N; ++k, ++t) {
-              const Vec3i n = s.base + Vec3i(i, j, k);
-              std::size_t at = kNone;
-              if ((n.array() >= 0).all() && (n.array() < g.nodes.array()).all() &&
-                  g.slot[g.page(n.x() >> Grid::kBlockBits, n.y() >> Grid::kBlockBits,
-                                n.z() >> Grid::kBlockBits)] >= 0) {
-                at = g.node_index(n.x(), n.y(), n.z());
-                if (!(g.mass[at] > 0)) at = kNone;
-              }
-              storage_index[c * S + t] = at;
-              st.weights[c * S + t] = at == kNone ? 0 : std::max(ghost[t], Real(0));
-              sum += st.weights[c * S + t];
-            }
-        for (t = 0; t < S; ++t) st.weights[c * S + t] = sum > 0 ? st.weights[c * S + t] / sum : 0;
-      }
-    });
-  }
-  // Only the contacts that act take part: touching, or closing their gap within the substep
-  // at the velocity interpolated now (the solve's impulses only push particles away).
   std::size_t kept = 0;
   for (std::size_t c = 0; c < nc; ++c) {
     Vec3 u = Vec3::Zero();
     Real sum = 0;
     for (int t = 0; t < S; ++t) {
       const std::size_t at = storage_index[c * S + t];
-      if (at == kNone) continue;
+      if (at == kNoNode) continue;
       u += st.weights[c * S + t] * g.velocity[at];
       sum += st.weights[c * S + t];
     }
@@ -211,11 +176,19 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
   st.boundary.resize(kept);
   st.friction.resize(kept);
   st.weights.resize(kept * S);
+}
+
+/// Numbers the grid nodes of the kept contacts' stencils (grid storage indices
+/// `storage_index`, kNoNode for none) compactly in first-touch order, node 0 being none, and
+/// takes each node's velocity, inverse mass and key.
+void compact_nodes(const Grid& g, const std::vector<std::size_t>& storage_index, ContactState& st) {
+  const int S = st.stencil;
+  const std::size_t kept = st.size();
   if (st.compact.size() < g.mass.size()) st.compact.resize(g.mass.size(), -1);
-  st.storage.assign(1, kNone);  // compact node 0: none, weight 0, no mass
+  st.storage.assign(1, kNoNode);  // compact node 0: none, weight 0, no mass
   st.nodes.resize(kept * S);
   for (std::size_t e = 0; e < kept * S; ++e) {
-    if (storage_index[e] == kNone) {
+    if (storage_index[e] == kNoNode) {
       st.nodes[e] = 0;
       continue;
     }
@@ -248,6 +221,89 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
   }
 }
 
+/// The contacts' stencils (weights, grid storage indices), then compact node indices in
+/// first-touch order with each node's velocity, inverse mass and key.
+template <int N>
+void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, ContactState& st) {
+  constexpr int S = N * N * N;
+  const std::size_t nc = st.size();
+  const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(nc);
+  std::vector<std::size_t> storage_index(nc * S);
+  st.stencil = S;
+  st.weights.resize(nc * S);
+  // The stencil of the contact point, on the wall: the velocity there is the contact's, so a
+  // ball rolls on the wall, not on its particles' centres; its impulse enters with the ghost
+  // weights. Nodes without mass take no part, and the weights of the others are scaled to
+  // sum to one.
+#pragma omp parallel for schedule(static) if (sn * S >= kParallelMinItems)
+  for (std::ptrdiff_t c = 0; c < sn; ++c) {
+    dispatch_kernel(kernel, [&]<Kernel K>() {
+      if constexpr (KernelTraits<K>::kNodes == N) {
+        const auto s = make_stencil<K>(st.point[c], g.origin, g.inv_h);
+        Real ghost[S];
+        ghost_weights<K>(s, st.point[c], st.normal[c], std::cbrt(p.volume0(st.particle[c])),
+                         st.mls_quadrature, g, ghost);
+        int t = 0;
+        Real sum = 0;
+        for (int i = 0; i < N; ++i)
+          for (int j = 0; j < N; ++j)
+            for (int k = 0; k < N; ++k, ++t) {
+              const Vec3i n = s.base + Vec3i(i, j, k);
+              std::size_t at = kNoNode;
+              if ((n.array() >= 0).all() && (n.array() < g.nodes.array()).all() &&
+                  g.slot[g.page(n.x() >> Grid::kBlockBits, n.y() >> Grid::kBlockBits,
+                                n.z() >> Grid::kBlockBits)] >= 0) {
+                at = g.node_index(n.x(), n.y(), n.z());
+                if (!(g.mass[at] > 0)) at = kNoNode;
+              }
+              storage_index[c * S + t] = at;
+              st.weights[c * S + t] = at == kNoNode ? 0 : std::max(ghost[t], Real(0));
+              sum += st.weights[c * S + t];
+            }
+        for (t = 0; t < S; ++t) st.weights[c * S + t] = sum > 0 ? st.weights[c * S + t] / sum : 0;
+      }
+    });
+  }
+  keep_acting_contacts(dt, g, st, storage_index);
+  compact_nodes(g, storage_index, st);
+}
+
+/// st.inv_k: the inverse row sums of W M^-1 W^T. A contact's step is its violation over its
+/// row sum, so the part of the impulses that is the same at every contact, a body pressing on
+/// the wall as a whole, is found in the first iteration, and no mode is overshot. `par`: in
+/// parallel.
+void row_sum_inverses(ContactState& st, bool par) {
+  const int S = st.stencil;
+  const std::size_t nc = st.size();
+  const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(nc);
+  const std::vector<Real>& inv_m = st.node_inv_mass;
+  std::vector<Real> share(st.node_velocity.size(), 0);
+  for (std::size_t e = 0; e < nc * S; ++e) share[st.nodes[e]] += st.weights[e];
+#pragma omp parallel for schedule(static) if (par)
+  for (std::ptrdiff_t c = 0; c < sn; ++c) {
+    Real k = 0;
+    for (int t = 0; t < S; ++t) {
+      const std::uint32_t i = st.nodes[c * S + t];
+      const Real w = st.weights[c * S + t];
+      k += w * share[i] * inv_m[i];
+    }
+    st.inv_k[c] = k > 0 ? 1 / k : 0;
+  }
+}
+
+/// Per patch (wall and object): the friction capacity `load`, the sum of mu times the normal
+/// impulses `ln` of its rubbing contacts, and their number `rubbers`.
+void patch_loads(const ContactState& st, const std::vector<Real>& ln, std::vector<Real>& load,
+                 std::vector<Real>& rubbers) {
+  std::fill(load.begin(), load.end(), 0);
+  std::fill(rubbers.begin(), rubbers.end(), 0);
+  for (std::size_t c = 0; c < st.size(); ++c)
+    if (rubs(st, c) && !held(st, c)) {
+      load[st.patch[c]] += st.friction[c] * std::max(ln[c], Real(0));
+      rubbers[st.patch[c]] += 1;
+    }
+}
+
 }  // namespace
 
 Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st) {
@@ -273,21 +329,7 @@ Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st) {
     }
   };
   interpolate();
-  // The row sums of W M^-1 W^T: a contact's step is its violation over its row sum, so the
-  // part of the impulses that is the same at every contact, a body pressing on the wall as a
-  // whole, is found in the first iteration, and no mode is overshot.
-  std::vector<Real> share(nn, 0);
-  for (std::size_t e = 0; e < nc * S; ++e) share[st.nodes[e]] += st.weights[e];
-#pragma omp parallel for schedule(static) if (par)
-  for (std::ptrdiff_t c = 0; c < sn; ++c) {
-    Real k = 0;
-    for (int t = 0; t < S; ++t) {
-      const std::uint32_t i = st.nodes[c * S + t];
-      const Real w = st.weights[c * S + t];
-      k += w * share[i] * inv_m[i];
-    }
-    st.inv_k[c] = k > 0 ? 1 / k : 0;
-  }
+  row_sum_inverses(st, par);
   // Friction is Coulomb's law on the traction, a field over the contact. A particle's own
   // normal impulse is one of many equivalent splits of it among the particles that share
   // nodes (W M^-1 W^T is singular there), so the law is applied at the nodes: each contact
@@ -316,13 +358,7 @@ Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st) {
       largest = std::max({largest, std::abs(ln[c] - st.normal_impulse[c]), ask[c].norm()});
     }
     if (largest == 0) break;
-    std::fill(load.begin(), load.end(), 0);
-    std::fill(rubbers.begin(), rubbers.end(), 0);
-    for (std::size_t c = 0; c < nc; ++c)
-      if (rubs(st, c) && !held(st, c)) {
-        load[st.patch[c]] += st.friction[c] * std::max(ln[c], Real(0));
-        rubbers[st.patch[c]] += 1;
-      }
+    patch_loads(st, ln, load, rubbers);
     std::fill(step.begin(), step.end(), Vec3::Zero());
     std::fill(trial.begin(), trial.end(), Vec3::Zero());
     std::fill(cap.begin(), cap.end(), 0);

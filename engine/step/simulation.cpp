@@ -38,24 +38,23 @@ Simulation::Simulation(const SceneDesc& scene)
 namespace {
 
 /// Throws SceneError if `bytes` cannot fit in this machine's memory.
-void check_memory(double bytes, const FileLoc& loc, const std::string& key, const std::string& what) {
+void check_memory(double bytes, const FileLoc& loc, const std::string& key,
+                  const std::string& what) {
   const double have = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * sysconf(_SC_PAGE_SIZE);
   if (bytes > 0.8 * have) {
     char buf[160];
-    std::snprintf(buf, sizeof buf, " needs %.3g GB of memory; this machine has %.3g GB", bytes / 1e9,
-                  have / 1e9);
+    std::snprintf(buf, sizeof buf, " needs %.3g GB of memory; this machine has %.3g GB",
+                  bytes / 1e9, have / 1e9);
     throw SceneError(loc, key, what + buf);
   }
 }
 
-}  // namespace
-
-std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
-                                               const MaterialRegistry& registry) {
-  // The grid's node storage follows the particles. What covers the domain: its page table (one
-  // int per 4^3-node block), and at worst the sort's count per cell of the particles' box.
-  const Vec3 blocks = (scene.grid.dims + Vec3i::Constant(Grid::kBlockEdge))
-                          .cast<Real>() / Grid::kBlockEdge;
+/// Throws SceneError if the grid of `scene` cannot be stored or sorted: the grid's node
+/// storage follows the particles, and what covers the domain is its page table (one int per
+/// 4^3-node block) and at worst the sort's count per cell of the particles' box.
+void check_grid_size(const SceneDesc& scene) {
+  const Vec3 blocks =
+      (scene.grid.dims + Vec3i::Constant(Grid::kBlockEdge)).cast<Real>() / Grid::kBlockEdge;
   const double cells = scene.grid.dims.cast<double>().prod();
   const std::string grid_name = "the grid of " + std::to_string(scene.grid.dims.x()) + " x " +
                                 std::to_string(scene.grid.dims.y()) + " x " +
@@ -65,116 +64,170 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
   if (cells >= 4294967296.0)  // the sort's cell keys are 32-bit
     throw SceneError(scene.grid.loc, "grid.dims",
                      grid_name + " has more than 2^32 cells, the most the sort can key");
-  std::unique_ptr<Simulation> sim(new Simulation(scene));
-  Particles& P = sim->particles_;
+}
+
+/// The closed mesh of object `od` (scene key `key`), placed in the world.
+TriangleMesh object_mesh(const ObjectDesc& od, const std::string& key) {
+  TriangleMesh mesh;
+  try {
+    mesh = load_mesh(od.mesh);
+  } catch (const MeshError& e) {
+    throw SceneError(od.mesh_loc, key + ".mesh", e.what());
+  }
+  if (const std::string why = closedness_problem(mesh); !why.empty())
+    throw SceneError(od.mesh_loc, key + ".mesh", "'" + od.mesh.string() + "': " + why);
+  transform_mesh(mesh, od.scale, od.rotation_deg, od.offset);
+  return mesh;
+}
+
+/// The particle positions of object o of `scene` (scene key `key`), sampled inside its `mesh`;
+/// SceneError when the object does not lie inside the grid's interior, could not fit in
+/// memory or samples no particle.
+std::vector<Vec3> sample_object(const SceneDesc& scene, std::size_t o, const std::string& key,
+                                const TriangleMesh& mesh) {
+  const ObjectDesc& od = scene.objects[o];
   const Vec3 h = scene.grid.spacing();
-  const Real cell_volume = h.prod();
   const Vec3 interior_lo = scene.grid.origin + scene.grid.buffer * h;
   const Vec3 interior_hi = scene.grid.max - scene.grid.buffer * h;
+  Eigen::AlignedBox<Real, 3> box;
+  for (const Vec3& v : mesh.vertices) box.extend(v);
+  // Where the object and the interior lie, for errors about one outside the other.
+  const auto corners = [](const Vec3& a, const Vec3& b) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "[%g, %g, %g] to [%g, %g, %g]", a.x(), a.y(), a.z(), b.x(),
+                  b.y(), b.z());
+    return std::string(buf);
+  };
+  const auto outside = [&](const std::string& how) {
+    return SceneError(od.placement_loc, key + ".offset",
+                      "object '" + od.name + "' lies " + how +
+                          " the grid interior (the grid minus its buffer of " +
+                          std::to_string(scene.grid.buffer) + " cells): the object spans " +
+                          corners(box.min(), box.max()) + ", the interior " +
+                          corners(interior_lo, interior_hi));
+  };
+  if ((box.min().array() > interior_hi.array()).any() ||
+      (box.max().array() < interior_lo.array()).any())
+    throw outside("outside");
+  {  // Refuse before sampling an object whose particles could never fit in memory.
+    const Vec3 cells = box.sizes().cwiseQuotient(h) + Vec3::Ones();
+    check_memory(cells.prod() * od.particles_per_cell * 400.0, od.loc, key,
+                 "object '" + od.name + "' at " + std::to_string(od.particles_per_cell) +
+                     " particles per cell");
+  }
+  std::vector<Vec3> points =
+      sample_inside(mesh, scene.grid, od.particles_per_cell, od.sampling == Sampling::regular,
+                    scene.simulation.seed, o);
+  for (const Vec3& x : points)
+    if ((x.array() < interior_lo.array()).any() || (x.array() > interior_hi.array()).any())
+      throw outside("partly outside");
+  if (points.empty())
+    throw SceneError(od.loc, key,
+                     "object '" + od.name + "' samples zero particles: it spans " +
+                         corners(box.min(), box.max()) + ", less than the particle spacing");
+  return points;
+}
 
+/// Appends object o of `scene`, sampled at `points` (freed here), to the particle arrays `P`
+/// with its initial velocity, F = I and its mass and volume; returns its ObjectInfo.
+ObjectInfo append_particles(const SceneDesc& scene, std::size_t o, std::vector<Vec3> points,
+                            Particles& P) {
+  const ObjectDesc& od = scene.objects[o];
+  const Real cell_volume = scene.grid.spacing().prod();
+  const std::size_t n = points.size();
+  const Real v0 = cell_volume / od.particles_per_cell;
+  const Real total_mass = od.mass ? *od.mass : *od.density * v0 * n;
+  const Real density = total_mass / (v0 * n);
+  ObjectInfo info{od.name, od.material, P.size(), n, total_mass, density};
+
+  // v = v0 + L (x - centroid), L = velocity_gradient + skew(angular_velocity).
+  Vec3 centroid = Vec3::Zero();
+  for (const Vec3& x : points) centroid += x / static_cast<Real>(n);
+  const Vec3& w = od.angular_velocity;
+  Mat3 L = od.velocity_gradient;
+  L += (Mat3() << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0).finished();
+  // Arrays grown to exact sizes, and the samples freed before the matrices are allocated:
+  // the peak memory of creation stays below that of the step.
+  P.x.insert(P.x.end(), points.begin(), points.end());
+  std::vector<Vec3>().swap(points);
+  P.v.reserve(P.v.size() + n);
+  for (std::size_t q = info.first; q < info.first + n; ++q)
+    P.v.push_back(od.velocity + L * (P.x[q] - centroid));
+  P.id.reserve(P.id.size() + n);
+  if (scene.simulation.transfer == Transfer::apic || scene.simulation.transfer == Transfer::mls)
+    P.C.insert(P.C.end(), n, to_stored(L));
+  P.F.insert(P.F.end(), n, StoredMat3::Identity());
+  P.object.insert(P.object.end(), n, static_cast<std::uint32_t>(o));
+  for (std::size_t q = info.first; q < info.first + n; ++q)
+    P.id.push_back(static_cast<std::uint32_t>(q));
+  P.object_mass.push_back(total_mass / n);
+  P.object_volume0.push_back(v0);
+  return info;
+}
+
+/// Sets `rest_depth` (by particle id, ContactState::rest_depth) for the particles `info` of an
+/// elastic object: each one's depth below the surface of its placed `mesh`, where it is within
+/// kRestDepthCap half spacings.
+void add_rest_depth(const TriangleMesh& mesh, const Particles& P, const ObjectInfo& info,
+                    std::vector<Real>& rest_depth) {
+  const Real spacing = std::cbrt(P.object_volume0.back());
+  const std::vector<Real> depth = depth_below_surface(mesh, {P.x.data() + info.first, info.count},
+                                                      spacing / 4, kRestDepthCap * spacing / 2);
+  rest_depth.resize(P.size(), -1);
+  std::copy(depth.begin(), depth.end(), rest_depth.begin() + info.first);
+}
+
+/// The registered material of object `od` (scene key `key`); SceneError when unknown.
+const MaterialInfo& object_material(const MaterialRegistry& registry, const ObjectDesc& od,
+                                    const std::string& key) {
+  const MaterialInfo* mat = registry.find(od.material);
+  if (!mat) throw SceneError(od.loc, key + ".material", "unknown material '" + od.material + "'");
+  return *mat;
+}
+
+/// The material group of object `od` (scene key `key`, particles `info` at `x`) from `mat`'s
+/// factory; a factory may reject a combination of parameters by throwing (docs/materials.md),
+/// which becomes a SceneError at the object.
+std::unique_ptr<MaterialGroup> create_group(const MaterialInfo& mat, const ObjectDesc& od,
+                                            const std::string& key, const ObjectInfo& info,
+                                            const Vec3* x, std::uint64_t seed) {
+  std::unique_ptr<MaterialGroup> group;
+  try {
+    group = mat.create(od.params, GroupInfo{info.density, info.count, {x, info.count}, seed});
+  } catch (const std::exception& e) {
+    throw SceneError(od.loc, key,
+                     "material '" + od.material + "' rejects the parameters of " + "object '" +
+                         od.name + "': " + e.what());
+  }
+  if (!group)
+    throw SceneError(od.loc, key, "material '" + od.material + "' built no material group");
+  return group;
+}
+
+}  // namespace
+
+std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
+                                               const MaterialRegistry& registry) {
+  check_grid_size(scene);
+  std::unique_ptr<Simulation> sim(new Simulation(scene));
+  Particles& P = sim->particles_;
   for (std::size_t o = 0; o < scene.objects.size(); ++o) {
     const ObjectDesc& od = scene.objects[o];
     const std::string key = "objects[" + std::to_string(o) + "]";
-    TriangleMesh mesh;
-    try {
-      mesh = load_mesh(od.mesh);
-    } catch (const MeshError& e) {
-      throw SceneError(od.mesh_loc, key + ".mesh", e.what());
-    }
-    if (const std::string why = closedness_problem(mesh); !why.empty())
-      throw SceneError(od.mesh_loc, key + ".mesh", "'" + od.mesh.string() + "': " + why);
-    transform_mesh(mesh, od.scale, od.rotation_deg, od.offset);
-    Eigen::AlignedBox<Real, 3> box;
-    for (const Vec3& v : mesh.vertices) box.extend(v);
-    // Where the object and the interior lie, for errors about one outside the other.
-    const auto corners = [](const Vec3& a, const Vec3& b) {
-      char buf[160];
-      std::snprintf(buf, sizeof buf, "[%g, %g, %g] to [%g, %g, %g]", a.x(), a.y(), a.z(), b.x(),
-                    b.y(), b.z());
-      return std::string(buf);
-    };
-    const auto outside = [&](const std::string& how) {
-      return SceneError(od.placement_loc, key + ".offset",
-                        "object '" + od.name + "' lies " + how +
-                            " the grid interior (the grid minus its buffer of " +
-                            std::to_string(scene.grid.buffer) + " cells): the object spans " +
-                            corners(box.min(), box.max()) + ", the interior " +
-                            corners(interior_lo, interior_hi));
-    };
-    if ((box.min().array() > interior_hi.array()).any() ||
-        (box.max().array() < interior_lo.array()).any())
-      throw outside("outside");
-    {  // Refuse before sampling an object whose particles could never fit in memory.
-      const Vec3 cells = box.sizes().cwiseQuotient(h) + Vec3::Ones();
-      check_memory(cells.prod() * od.particles_per_cell * 400.0, od.loc, key,
-                   "object '" + od.name + "' at " + std::to_string(od.particles_per_cell) +
-                       " particles per cell");
-    }
-    std::vector<Vec3> points =
-        sample_inside(mesh, scene.grid, od.particles_per_cell,
-                      od.sampling == Sampling::regular, scene.simulation.seed, o);
-    for (const Vec3& x : points)
-      if ((x.array() < interior_lo.array()).any() || (x.array() > interior_hi.array()).any())
-        throw outside("partly outside");
-    if (points.empty())
-      throw SceneError(od.loc, key, "object '" + od.name + "' samples zero particles: it spans " +
-                                        corners(box.min(), box.max()) +
-                                        ", less than the particle spacing");
-
-    const std::size_t n = points.size();
-    const Real v0 = cell_volume / od.particles_per_cell;
-    const Real total_mass = od.mass ? *od.mass : *od.density * v0 * n;
-    const Real density = total_mass / (v0 * n);
-    ObjectInfo info{od.name, od.material, P.size(), n, total_mass, density};
-
-    // v = v0 + L (x - centroid), L = velocity_gradient + skew(angular_velocity).
-    Vec3 centroid = Vec3::Zero();
-    for (const Vec3& x : points) centroid += x / static_cast<Real>(n);
-    const Vec3& w = od.angular_velocity;
-    Mat3 L = od.velocity_gradient;
-    L += (Mat3() << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0).finished();
-    // Arrays grown to exact sizes, and the samples freed before the matrices are allocated:
-    // the peak memory of creation stays below that of the step.
-    P.x.insert(P.x.end(), points.begin(), points.end());
-    std::vector<Vec3>().swap(points);
-    P.v.reserve(P.v.size() + n);
-    for (std::size_t q = info.first; q < info.first + n; ++q)
-      P.v.push_back(od.velocity + L * (P.x[q] - centroid));
-    P.id.reserve(P.id.size() + n);
-    if (scene.simulation.transfer == Transfer::apic || scene.simulation.transfer == Transfer::mls)
-      P.C.insert(P.C.end(), n, to_stored(L));
-    P.F.insert(P.F.end(), n, StoredMat3::Identity());
-    P.object.insert(P.object.end(), n, static_cast<std::uint32_t>(o));
-    for (std::size_t q = info.first; q < info.first + n; ++q)
-      P.id.push_back(static_cast<std::uint32_t>(q));
-    P.object_mass.push_back(total_mass / n);
-    P.object_volume0.push_back(v0);
-
-    const MaterialInfo* mat = registry.find(od.material);
-    if (!mat) throw SceneError(od.loc, key + ".material", "unknown material '" + od.material + "'");
-    // A factory may reject a combination of parameters by throwing (docs/materials.md).
-    std::unique_ptr<MaterialGroup> group;
-    try {
-      group = mat->create(
-          od.params, GroupInfo{density, n, {P.x.data() + info.first, n}, scene.simulation.seed});
-    } catch (const std::exception& e) {
-      throw SceneError(od.loc, key, "material '" + od.material + "' rejects the parameters of " +
-                                        "object '" + od.name + "': " + e.what());
-    }
-    if (!group)
-      throw SceneError(od.loc, key, "material '" + od.material + "' built no material group");
+    const TriangleMesh mesh = object_mesh(od, key);
+    const ObjectInfo info = append_particles(scene, o, sample_object(scene, o, key, mesh), P);
+    const MaterialInfo& mat = object_material(registry, od, key);
+    std::unique_ptr<MaterialGroup> group =
+        create_group(mat, od, key, info, P.x.data() + info.first, scene.simulation.seed);
     // Contact at the particles: the surface particles of an elastic body take their depth
     // below its surface as their radius (engine/step/contact.h).
-    if (scene.simulation.contact == Contact::particles && !group->has_plasticity()) {
-      const Real spacing = std::cbrt(v0);
-      const std::vector<Real> depth = depth_below_surface(mesh, {P.x.data() + info.first, n},
-                                                          spacing / 4, kRestDepthCap * spacing / 2);
-      sim->contact_.rest_depth.resize(P.size(), -1);
-      std::copy(depth.begin(), depth.end(), sim->contact_.rest_depth.begin() + info.first);
-    }
+    if (scene.simulation.contact == Contact::particles && !group->has_plasticity())
+      add_rest_depth(mesh, P, info, sim->contact_.rest_depth);
+    const std::size_t n = info.count;
+    const Real density = info.density;
     sim->state_stride_.push_back(group->state().size() / n);
     sim->group_factories_.push_back(
-        [create = mat->create, params = od.params, density](std::size_t count) {
+        [create = mat.create, params = od.params, density](std::size_t count) {
           return create(params, GroupInfo{density, count});
         });
     sim->materials_.push_back({info.first, n, std::move(group)});
@@ -189,30 +242,28 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
   return sim;
 }
 
-void Simulation::build_stages() {
-  const SimulationDesc& s = scene_.simulation;
-  stages_.clear();
+void Simulation::add_stage(std::string name, std::function<void(Real)> fn) {
   // With more than one rank a stage's exception is kept in the domain and the rank's later
   // compute stages are skipped, while its exchanges still run (the other ranks wait in them):
   // run_frames then stops every rank at the end of the substep (docs/distributed.md).
-  auto add = [&](std::string name, std::function<void(Real)> fn) {
-    if (domain_)
-      fn = [this, name, fn = std::move(fn)](Real dt) {
-        if (!domain_->failure().empty()) return;
-        try {
-          fn(dt);
-        } catch (const std::exception& e) {
-          domain_->set_failure("stage " + name + ": " + e.what());
-        }
-      };
-    stages_.push_back({std::move(name), std::move(fn), 0.0});
-  };
-  auto exchange = [&](std::string name, std::function<void(Real)> fn) {
-    stages_.push_back({std::move(name), std::move(fn), 0.0});
-  };
-  add("sort", [this](Real) { sort_particles(particles_, scene_.simulation.kernel, grid_, order_); });
-  // With more than one rank: the previous rank's ghost blocks get storage here too.
-  if (domain_) exchange("halo_blocks", [this](Real) { domain_->share_ghost_blocks(grid_); });
+  if (domain_)
+    fn = [this, name, fn = std::move(fn)](Real dt) {
+      if (!domain_->failure().empty()) return;
+      try {
+        fn(dt);
+      } catch (const std::exception& e) {
+        domain_->set_failure("stage " + name + ": " + e.what());
+      }
+    };
+  stages_.push_back({std::move(name), std::move(fn), 0.0});
+}
+
+void Simulation::add_exchange(std::string name, std::function<void(Real)> fn) {
+  stages_.push_back({std::move(name), std::move(fn), 0.0});
+}
+
+std::vector<BatchModel> Simulation::add_stress_stage() {
+  const SimulationDesc& s = scene_.simulation;
   // The stress of each group (object), chosen here once per group: with simulation.simd, a
   // group whose model has an engine SIMD kernel gets it folded into the SIMD scatter (no
   // stress array, no pass), or, where the scatter is scalar (FLIP), run as its own SIMD pass;
@@ -235,7 +286,7 @@ void Simulation::build_stages() {
   particles_.stress.assign(stored ? particles_.size() : 0, StoredMat3::Zero());
   particles_.stress.shrink_to_fit();
   if (stored)
-    add("compute_stress", [this, batch, fold](Real) {
+    add_stage("compute_stress", [this, batch, fold](Real) {
       for (std::size_t g = 0; g < materials_.size(); ++g) {
         if (g < fold.size() && fold[g].kind != BatchModel::Kind::none) continue;
         const auto& m = materials_[g];
@@ -248,70 +299,83 @@ void Simulation::build_stages() {
           m.material->compute_stress(F, v0, slice(particles_.stress, m));
       }
     });
-  add("particles_to_grid",
-      [this, fold](Real dt) {
-        const SimulationDesc& sd = scene_.simulation;
-        particles_to_grid(particles_, order_, sd.transfer, sd.kernel, dt, grid_,
-                          sd.simd ? TransferPath::simd : TransferPath::scalar, fold);
-      });
+  return fold;
+}
+
+void Simulation::add_boundary_stages() {
+  if (scene_.simulation.contact == Contact::nodes) {
+    // Walls act on the grid velocities of the end of the substep: place them at time + dt.
+    if (!walls_.empty())
+      add_stage("walls", [this](Real dt) { wall_work_ += apply_walls(walls_, time_ + dt, grid_); });
+    if (!colliders_.empty())
+      add_stage("colliders",
+                [this](Real dt) { wall_work_ += apply_colliders(colliders_, time_ + dt, grid_); });
+    add_stage("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
+    if (domain_)
+      add_exchange("halo_velocity", [this](Real) { domain_->return_ghost_velocities(grid_); });
+    return;
+  }
+  // With more than one rank the ghosts take their owners' mass and velocity first: contact
+  // reads the nodes around every contact point.
+  if (domain_)
+    add_exchange("halo_velocity", [this](Real) { domain_->return_ghost_velocities(grid_); });
+  // Walls and colliders act where the particles touch them (engine/step/contact.h).
+  if (!walls_.empty() || !colliders_.empty())
+    add_stage("contact", [this](Real dt) {
+      const Kernel kernel = scene_.simulation.kernel;
+      if (!domain_) {
+        wall_work_ += apply_contact(walls_, colliders_, ContactSettings{}, kernel, time_, dt,
+                                    particles_, grid_, contact_);
+        return;
+      }
+      find_contacts(walls_, colliders_, kernel, time_, dt, particles_, grid_, contact_);
+    });
+  // The solve over every rank's contacts is collective: a rank whose stages failed takes
+  // part with none.
+  if (domain_ && (!walls_.empty() || !colliders_.empty()))
+    add_exchange("contact_solve", [this](Real dt) {
+      if (!domain_->failure().empty()) contact_.clear();
+      wall_work_ += domain_->solve_contact(ContactSettings{}, dt, contact_, grid_);
+    });
+  add_stage("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
+}
+
+void Simulation::build_stages() {
+  const SimulationDesc& s = scene_.simulation;
+  stages_.clear();
+  add_stage("sort",
+            [this](Real) { sort_particles(particles_, scene_.simulation.kernel, grid_, order_); });
+  // With more than one rank: the previous rank's ghost blocks get storage here too.
+  if (domain_) add_exchange("halo_blocks", [this](Real) { domain_->share_ghost_blocks(grid_); });
+  const std::vector<BatchModel> fold = add_stress_stage();
+  add_stage("particles_to_grid", [this, fold](Real dt) {
+    const SimulationDesc& sd = scene_.simulation;
+    particles_to_grid(particles_, order_, sd.transfer, sd.kernel, dt, grid_,
+                      sd.simd ? TransferPath::simd : TransferPath::scalar, fold);
+  });
   // Between the transfers, where v and C are dead unless FLIP blends the old v.
   if (s.reorder_every > 0)
-    add("reorder", [this](Real) {
+    add_stage("reorder", [this](Real) {
       if (substeps_ % scene_.simulation.reorder_every != 0) return;
       std::vector<ReorderRange> ranges;
       for (auto& m : materials_)  // an object with no particles here (other ranks) has none
         if (m.count > 0) ranges.push_back({m.first, m.count, m.material->state()});
-      reorder_particles(ranges, scene_.simulation.transfer == Transfer::flip, order_,
-                        particles_);
+      reorder_particles(ranges, scene_.simulation.transfer == Transfer::flip, order_, particles_);
     });
-  if (domain_) exchange("halo_sum", [this](Real) { domain_->add_ghost_sums(grid_); });
-  add("grid_update", [this](Real) { grid_update(grid_); });
+  if (domain_) add_exchange("halo_sum", [this](Real) { domain_->add_ghost_sums(grid_); });
+  add_stage("grid_update", [this](Real) { grid_update(grid_); });
   // PIC and APIC scatter the stress force as an impulse (see particles_to_grid).
   if (s.transfer == Transfer::flip)
-    add("stress_forces", [this](Real dt) { apply_stress_forces(dt, grid_); });
+    add_stage("stress_forces", [this](Real dt) { apply_stress_forces(dt, grid_); });
   if (s.gravity.squaredNorm() > 0)
-    add("gravity", [this](Real dt) { apply_gravity(dt, scene_.simulation.gravity, grid_); });
+    add_stage("gravity", [this](Real dt) { apply_gravity(dt, scene_.simulation.gravity, grid_); });
   if (s.damping > 0)
-    add("damping", [this](Real dt) { apply_damping(dt, scene_.simulation.damping, grid_); });
-  if (s.contact == Contact::nodes) {
-    // Walls act on the grid velocities of the end of the substep: place them at time + dt.
-    if (!walls_.empty())
-      add("walls", [this](Real dt) { wall_work_ += apply_walls(walls_, time_ + dt, grid_); });
-    if (!colliders_.empty())
-      add("colliders",
-          [this](Real dt) { wall_work_ += apply_colliders(colliders_, time_ + dt, grid_); });
-    add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
-    if (domain_)
-      exchange("halo_velocity", [this](Real) { domain_->return_ghost_velocities(grid_); });
-  } else {
-    // With more than one rank the ghosts take their owners' mass and velocity first: contact
-    // reads the nodes around every contact point.
-    if (domain_)
-      exchange("halo_velocity", [this](Real) { domain_->return_ghost_velocities(grid_); });
-    // Walls and colliders act where the particles touch them (engine/step/contact.h).
-    if (!walls_.empty() || !colliders_.empty())
-      add("contact", [this](Real dt) {
-        const Kernel kernel = scene_.simulation.kernel;
-        if (!domain_) {
-          wall_work_ += apply_contact(walls_, colliders_, ContactSettings{}, kernel, time_, dt,
-                                      particles_, grid_, contact_);
-          return;
-        }
-        find_contacts(walls_, colliders_, kernel, time_, dt, particles_, grid_, contact_);
-      });
-    // The solve over every rank's contacts is collective: a rank whose stages failed takes
-    // part with none.
-    if (domain_ && (!walls_.empty() || !colliders_.empty()))
-      exchange("contact_solve", [this](Real dt) {
-        if (!domain_->failure().empty()) contact_.clear();
-        wall_work_ += domain_->solve_contact(ContactSettings{}, dt, contact_, grid_);
-      });
-    add("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
-  }
+    add_stage("damping", [this](Real dt) { apply_damping(dt, scene_.simulation.damping, grid_); });
+  add_boundary_stages();
   // Advection runs inside the gather: on the SIMD path each lane set is advected while its x
   // and v are in cache (the plasticity stage below reads and writes only F and its own state,
   // so the order of the two does not matter).
-  add("grid_to_particles", [this](Real dt) {
+  add_stage("grid_to_particles", [this](Real dt) {
     const SimulationDesc& sd = scene_.simulation;
     grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_,
                       sd.simd ? TransferPath::simd : TransferPath::scalar, &last_advect_);
@@ -320,16 +384,16 @@ void Simulation::build_stages() {
   const bool plastic = std::any_of(materials_.begin(), materials_.end(),
                                    [](const auto& m) { return m.material->has_plasticity(); });
   if (plastic)
-    add("plasticity", [this](Real dt) {
+    add_stage("plasticity", [this](Real dt) {
       for (auto& m : materials_)
         if (m.material->has_plasticity())
           m.material->apply_plasticity_step(slice(particles_.F, m), dt);
     });
   // The run's checks see every rank's advection; particles move to their new slab's rank.
   if (domain_ && domain_->test_failure_requested())
-    add("test_failure", [this](Real) { domain_->test_failure_point(substeps_ + 1); });
+    add_stage("test_failure", [this](Real) { domain_->test_failure_point(substeps_ + 1); });
   if (domain_)
-    exchange("migrate", [this](Real) {
+    add_exchange("migrate", [this](Real) {
       const AdvectStats local = last_advect_;
       domain_->migrate(*this);
       last_advect_ = domain_->combine(local);
@@ -455,9 +519,9 @@ const std::vector<Real>& Simulation::range_elastic_energies() const {
     range_energy_.clear();
     for (const auto& m : materials_)
       range_energy_.push_back(
-          m.count == 0 ? Real(0)
-                       : m.material->elastic_energy(slice(particles_.F, m),
-                                                    particles_.volume0(m.first)));
+          m.count == 0
+              ? Real(0)
+              : m.material->elastic_energy(slice(particles_.F, m), particles_.volume0(m.first)));
     energy_state_ = state_;
   }
   return range_energy_;

@@ -22,26 +22,26 @@ namespace mpm {
 
 /// One object after sampling: a contiguous range of particles.
 struct ObjectInfo {
-  std::string name;      ///< From the scene.
-  std::string material;  ///< Material name.
-  std::size_t first = 0; ///< First particle index.
-  std::size_t count = 0; ///< Number of particles.
-  Real mass = 0;         ///< Total mass, kg.
-  Real density = 0;      ///< Reference density, kg/m^3.
+  std::string name;       ///< From the scene.
+  std::string material;   ///< Material name.
+  std::size_t first = 0;  ///< First particle index.
+  std::size_t count = 0;  ///< Number of particles.
+  Real mass = 0;          ///< Total mass, kg.
+  Real density = 0;       ///< Reference density, kg/m^3.
 };
 
 /// A contiguous particle range and the material that acts on it.
 struct MaterialRange {
-  std::size_t first = 0;                     ///< First particle index.
-  std::size_t count = 0;                     ///< Number of particles.
-  std::unique_ptr<MaterialGroup> material;   ///< Built by the registry.
+  std::size_t first = 0;                    ///< First particle index.
+  std::size_t count = 0;                    ///< Number of particles.
+  std::unique_ptr<MaterialGroup> material;  ///< Built by the registry.
 };
 
 /// A named step of the substep, with the time it has taken so far.
 struct Stage {
-  std::string name;                 ///< Name in reports, e.g. "particles_to_grid".
-  std::function<void(Real)> run;    ///< Runs the stage for a substep of dt.
-  double seconds = 0;               ///< Accumulated wall time.
+  std::string name;               ///< Name in reports, e.g. "particles_to_grid".
+  std::function<void(Real)> run;  ///< Runs the stage for a substep of dt.
+  double seconds = 0;             ///< Accumulated wall time.
 };
 
 /// Everything one run needs, built once from a validated scene.
@@ -146,7 +146,18 @@ class Simulation {
 
  private:
   explicit Simulation(const SceneDesc& scene);
+  /// Builds the substep's stage list from the scene (docs/architecture.md, "The substep").
   void build_stages();
+  /// Appends compute stage `name`; with more than one rank its exception is kept in the
+  /// domain and later compute stages are skipped.
+  void add_stage(std::string name, std::function<void(Real)> fn);
+  /// Appends exchange stage `name` (with more than one rank: runs even after a failure).
+  void add_exchange(std::string name, std::function<void(Real)> fn);
+  /// Chooses each group's stress path, appends the compute_stress stage when any group stores
+  /// its stress, and returns the models folded into the SIMD scatter (empty: none).
+  std::vector<BatchModel> add_stress_stage();
+  /// Appends the stages of walls, colliders and the domain boundary (simulation.contact).
+  void add_boundary_stages();
 
   SceneDesc scene_;
   Particles particles_;
@@ -164,9 +175,9 @@ class Simulation {
   AdvectStats last_advect_;
   std::size_t clamped_total_ = 0;
   Real wall_work_ = 0;
-  std::size_t state_ = 0;                          // bumped by every change of state
-  mutable std::size_t energy_state_ = SIZE_MAX;    // the state range_energy_ was computed for
-  mutable std::vector<Real> range_energy_;         // cache of range_elastic_energies()
+  std::size_t state_ = 0;                        // bumped by every change of state
+  mutable std::size_t energy_state_ = SIZE_MAX;  // the state range_energy_ was computed for
+  mutable std::vector<Real> range_energy_;       // cache of range_elastic_energies()
   std::shared_ptr<RankExchange> domain_;
   /// Builds object o's material group for a count of particles (replace_particles).
   std::vector<std::function<std::unique_ptr<MaterialGroup>(std::size_t)>> group_factories_;

@@ -31,7 +31,9 @@ namespace hn = hwy::HWY_NAMESPACE;
 /// lane with blends. Returns the lanes where that path's accuracy test (P'(lambda) > 2 |F|^3,
 /// Halley converged, lambda finite) fails: the caller recomputes those in double with the
 /// scalar model, as the scalar path falls back to svd_rv. So an inverted F (det F < 0) gets
-/// the proper rotation maximising tr(R^T F), as in the scalar path.
+/// the proper rotation maximising tr(R^T F), as in the scalar path. Long because it is one
+/// inlined chain of lane arithmetic (K, Halley's iteration, the rotation, the stress) whose
+/// intermediate vectors stay in registers; split, they would be passed through memory.
 template <class D, class V = hn::Vec<D>>
 hn::Mask<D> neg_v0_tau(D d, const V f[9], V two_mu, V lambda, V neg_v0, V out[9]) {
   const auto F = [&](int r, int c) { return f[3 * c + r]; };

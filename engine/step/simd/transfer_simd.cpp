@@ -13,8 +13,8 @@
 #endif
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "engine/step/simd/transfer_simd.cpp"
-#include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/cache_control.h>
+#include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/highway.h>
 
 #include "engine/step/simd/corotated-inl.h"
@@ -87,7 +87,7 @@ void lane_weights(D d, V x, V* w, V* dw) {
 /// KernelTraits<K>::base and make_stencil compute it: stores the base node (int) at `base` and
 /// the offset of the base node from the particle, x_base - x (m, rounded to float once), at
 /// `corner`; returns fx - base (cells), from which the caller takes the weights.
-template <Kernel K, class DD, class VD = hn::Vec<DD>>
+template <Kernel K, class DD, class VD = hn::Vec<DD> >
 VD stencil_lanes(DD dd, VD x, const Grid& g, int a, float* corner, std::int32_t* base) {
   const hn::Rebind<float, DD> dh;
   const hn::Rebind<std::int32_t, DD> dih;
@@ -163,7 +163,8 @@ inline bool consecutive_batch(const ParticleOrder& ord, std::size_t b0, std::siz
 /// whose mass, volume and model the batch then sets once instead of looking up per lane.
 inline bool one_object(const Particles& p, std::uint32_t first) {
   const hn::RebindToUnsigned<DF> du;
-  return hn::AllTrue(du, hn::Eq(hn::LoadU(du, p.object.data() + first), hn::Set(du, p.object[first])));
+  return hn::AllTrue(du,
+                     hn::Eq(hn::LoadU(du, p.object.data() + first), hn::Set(du, p.object[first])));
 }
 
 /// -V0 tau of the kLanes particles order[b0, b0 + kLanes) (clamped to `end`), for the scatter:
@@ -178,8 +179,7 @@ struct StressBatch {
 /// kLanes consecutive particles (consecutive_batch), whose F load_matrices reads; `uniform`:
 /// and they belong to one object (one_object).
 void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
-                 std::size_t b0, std::size_t end, bool consecutive, bool uniform,
-                 StressBatch& sb) {
+                 std::size_t b0, std::size_t end, bool consecutive, bool uniform, StressBatch& sb) {
   const DF d;
   sb.b0 = b0;
   sb.b1 = std::min(end, b0 + kLanes);
@@ -265,6 +265,9 @@ struct ScatterBatch {
 };
 
 /// Fills `pb` with order[b0, min(b0 + kLanes, end)); `sb` holds their stresses after.
+/// Long because it is the scatter's per-batch hot path: its lane arrays (weights, corners,
+/// velocities, C) live on its stack and in registers between the stencil and the momentum
+/// tables; split into functions they would be passed through memory.
 template <Kernel K, Transfer T>
 void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
                 const Grid& g, Real dt, std::size_t b0, std::size_t end, StressBatch& sb,
@@ -334,8 +337,8 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
     for (int a = 0; a < 3; ++a) {
       hn::Vec<decltype(dd)> w[N], dw[N];
       lane_weights<K>(
-          dd, stencil_lanes<K>(dd, hn::Load(dd, xs[a] + h), g, a, corner[a] + h, pb.base[a] + h),
-          w, dw);
+          dd, stencil_lanes<K>(dd, hn::Load(dd, xs[a] + h), g, a, corner[a] + h, pb.base[a] + h), w,
+          dw);
       for (int k = 0; k < N; ++k) {
         hn::Store(hn::DemoteTo(dh, w[k]), dh, wl[a][k] + h);
         hn::Store(hn::DemoteTo(dh, hn::Mul(dw[k], hn::Set(dd, g.inv_h[a]))), dh, dwl[a][k] + h);
@@ -391,6 +394,10 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
 /// plane adds them times its x factors, broadcast: momentum e at (i, j, k) is
 /// X_e(i) A + wx(i) B_e with A = wy wz and B_e = Y_e(j) wz + wy Z_e(k). With fewer lanes,
 /// node n = (i N + j) N + k sits in lane n of NV vectors and takes all three factors by lookup.
+///
+/// Long because it is the SIMD scatter's hot loop: the window's sums (acc) and its lane tables
+/// stay in registers across the loop over particles and the slide along z; split into
+/// functions they would be passed through memory.
 template <Kernel K, Transfer T>
 void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t begin, std::size_t end,
                    Real dt, std::span<const BatchModel> fold, Grid& g) {
@@ -543,18 +550,14 @@ void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt,
   }
 }
 
-/// Gathers particles [q0, q0 + count), count <= kLanes, one lane each (the last lane's
-/// particle repeated in unused lanes, which are not written back).
-template <Kernel K, Transfer T>
-void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Particles& p) {
+/// The stencil of particles [q0, q0 + count) (count <= kLanes, the last particle repeated in
+/// unused lanes) per axis and lane: the base node, the distance fx - base (cells) and the
+/// corner offset x_base - x (m), computed in double and rounded to float once.
+template <Kernel K>
+HWY_INLINE void gather_stencil(const Grid& g, const Particles& p, std::size_t q0, std::size_t count,
+                               float (*dist)[kLanes], float (*corner)[kLanes],
+                               std::int32_t (*base)[kLanes]) {
   using Traits = KernelTraits<K>;
-  constexpr int N = Traits::kNodes;
-  constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
-  constexpr bool kGrad = T != Transfer::mls;  // MLS updates F with C, not with grad w
-  const DF d;
-  const DI di;
-  alignas(64) float dist[3][kLanes], corner[3][kLanes], Fin[9][kLanes];
-  alignas(64) std::int32_t base[3][kLanes];
   if (count == kLanes) {
     // A full batch: positions loaded three axes at a time into double lanes, the stencil
     // base, the distance to it and the corner offset computed there (as the scalar lines
@@ -579,6 +582,13 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       }
     }
   }
+}
+
+/// F of particles [q0, q0 + count) in float lanes (the last particle repeated in unused
+/// lanes): Fin[e][l] is entry e (column-major) of lane l's F.
+HWY_INLINE void load_F_lanes(const Particles& p, std::size_t q0, std::size_t count,
+                             float (*Fin)[kLanes]) {
+  [[maybe_unused]] const DF d;
   if constexpr (kFloatMatrices)
     if (count == kLanes) {
       VF f[9];
@@ -590,6 +600,66 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       const StoredReal* F = p.F[q0 + std::min(l, count - 1)].data();
       for (int e = 0; e < 9; ++e) Fin[e][l] = static_cast<float>(F[e]);
     }
+}
+
+/// Writes lanes [0, count) of the gather's results to particles [q0, q0 + count): F from
+/// out[0, 9), C from out[9, 18) (affine transfers only), v from out[18, 21), each column-major.
+template <bool kAffine>
+HWY_INLINE void store_gathered(const float (*out)[kLanes], std::size_t q0, std::size_t count,
+                               Particles& p) {
+  [[maybe_unused]] const DF d;
+  if constexpr (kFloatMatrices)
+    if (count == kLanes) {
+      VF m[9];
+      for (int e = 0; e < 9; ++e) m[e] = hn::Load(d, out[e]);
+      store_matrices(m, p.F[q0].data());
+      if constexpr (kAffine) {
+        for (int e = 0; e < 9; ++e) m[e] = hn::Load(d, out[9 + e]);
+        store_matrices(m, p.C[q0].data());
+      }
+    }
+  if (!kFloatMatrices || count < kLanes)
+    for (std::size_t l = 0; l < count; ++l) {
+      const std::size_t q = q0 + l;
+      StoredReal* F = p.F[q].data();
+      for (int e = 0; e < 9; ++e) F[e] = static_cast<StoredReal>(out[e][l]);
+      if constexpr (kAffine) {
+        StoredReal* Cq = p.C[q].data();
+        for (int e = 0; e < 9; ++e) Cq[e] = static_cast<StoredReal>(out[9 + e][l]);
+      }
+    }
+  if (count == kLanes) {
+    // Velocities widened to double in lanes and stored three axes at a time.
+    const hn::ScalableTag<double> dd;
+    const hn::Rebind<float, decltype(dd)> dh;
+    for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd))
+      hn::StoreInterleaved3(hn::PromoteTo(dd, hn::Load(dh, out[18] + h)),
+                            hn::PromoteTo(dd, hn::Load(dh, out[19] + h)),
+                            hn::PromoteTo(dd, hn::Load(dh, out[20] + h)), dd, p.v[q0 + h].data());
+  } else {
+    for (std::size_t l = 0; l < count; ++l) p.v[q0 + l] = Vec3(out[18][l], out[19][l], out[20][l]);
+  }
+}
+
+/// Gathers particles [q0, q0 + count), count <= kLanes, one lane each (the last lane's
+/// particle repeated in unused lanes, which are not written back). Long because it is the SIMD
+/// gather's hot kernel: the stencil's weights, node addresses and running sums (about 40
+/// vectors) stay in registers from the stencil to the F and C update; split into functions
+/// they would be passed through memory. Its jobs, in order: the stencil (gather_stencil), F
+/// (load_F_lanes), runs of lanes in one cell, node addresses, weights, the stencil sums, C,
+/// the F update, then the stores (store_gathered).
+template <Kernel K, Transfer T>
+void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Particles& p) {
+  using Traits = KernelTraits<K>;
+  constexpr int N = Traits::kNodes;
+  constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
+  constexpr bool kGrad = T != Transfer::mls;  // MLS updates F with C, not with grad w
+  const DF d;
+  const DI di;
+  alignas(64) float dist[3][kLanes], corner[3][kLanes], Fin[9][kLanes];
+  alignas(64) std::int32_t base[3][kLanes];
+  gather_stencil<K>(g, p, q0, count, dist, corner, base);
+  load_F_lanes(p, q0, count, Fin);
   // Runs of lanes with the same stencil cell (the reorder stage keeps a cell's particles
   // together): with at most kMaxRuns runs in the batch, each run's node velocities are loaded
   // once and spread to its lanes by blends, instead of gathered lane by lane. The values are
@@ -700,8 +770,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
             }
           } else {
             const VI sl = hn::IfThenElse(up[2][k], sij[1], sij[0]);
-            const VI vi =
-                hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl), hn::Add(oij, off[2][k]));
+            const VI vi = hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl), hn::Add(oij, off[2][k]));
             if constexpr (E0 == 0) {
               const VF lo = hn::BitCast(
                   d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::LowerHalf(dih, vi))));
@@ -774,44 +843,14 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     for (int col = 0; col < 3; ++col)
       for (int r = 0; r < 3; ++r) hn::Store(C[r][col], d, out[9 + 3 * col + r]);
   for (int e = 0; e < 3; ++e) hn::Store(sv[e], d, out[18 + e]);
-  if constexpr (kFloatMatrices)
-    if (count == kLanes) {
-      VF m[9];
-      for (int e = 0; e < 9; ++e) m[e] = hn::Load(d, out[e]);
-      store_matrices(m, p.F[q0].data());
-      if constexpr (kAffine) {
-        for (int e = 0; e < 9; ++e) m[e] = hn::Load(d, out[9 + e]);
-        store_matrices(m, p.C[q0].data());
-      }
-    }
-  if (!kFloatMatrices || count < kLanes)
-    for (std::size_t l = 0; l < count; ++l) {
-      const std::size_t q = q0 + l;
-      StoredReal* F = p.F[q].data();
-      for (int e = 0; e < 9; ++e) F[e] = static_cast<StoredReal>(out[e][l]);
-      if constexpr (kAffine) {
-        StoredReal* Cq = p.C[q].data();
-        for (int e = 0; e < 9; ++e) Cq[e] = static_cast<StoredReal>(out[9 + e][l]);
-      }
-    }
-  if (count == kLanes) {
-    // Velocities widened to double in lanes and stored three axes at a time.
-    const hn::ScalableTag<double> dd;
-    const hn::Rebind<float, decltype(dd)> dh;
-    for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd))
-      hn::StoreInterleaved3(hn::PromoteTo(dd, hn::Load(dh, out[18] + h)),
-                            hn::PromoteTo(dd, hn::Load(dh, out[19] + h)),
-                            hn::PromoteTo(dd, hn::Load(dh, out[20] + h)), dd, p.v[q0 + h].data());
-  } else {
-    for (std::size_t l = 0; l < count; ++l) p.v[q0 + l] = Vec3(out[18][l], out[19][l], out[20][l]);
-  }
+  store_gathered<kAffine>(out, q0, count, p);
 }
 
 /// Advects particles [q0, q0 + count) with their new velocities: advect_particle, in double
 /// lanes for a full batch, where x + dt v is one fused multiply-add on targets that have one
 /// (AVX2, AVX-512), so a position may differ from advect_particle's in its last bit.
-void advect_batch(const AdvectBox& box, Real dt, std::size_t q0, std::size_t count,
-                  Particles& p, std::size_t& clamped, std::size_t& nonfinite, Real& v2) {
+void advect_batch(const AdvectBox& box, Real dt, std::size_t q0, std::size_t count, Particles& p,
+                  std::size_t& clamped, std::size_t& nonfinite, Real& v2) {
   if (count < kLanes) {
     for (std::size_t q = q0; q < q0 + count; ++q)
       advect_particle(box, dt, p.v[q], p.x[q], clamped, nonfinite, v2);
