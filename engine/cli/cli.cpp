@@ -258,32 +258,36 @@ Args parse_args(int argc, char** argv) {
 /// The commands each option applies to; an option given to another command is refused rather
 /// than ignored. Options not listed (--quiet, --log-level) apply to every command.
 void check_options(const Args& a) {
-  static const std::vector<std::pair<std::string, std::vector<std::string>>> kApplies = {
-      {"--out", {"run"}},
-      {"--force", {"run", "golden"}},
-      {"--resume", {"run"}},
-      {"--format", {"run", "surface"}},
-      {"--frames", {"run", "golden", "compare"}},
-      {"--set", {"run", "validate", "golden"}},
-      {"--plugin", {"run", "validate", "golden", "materials"}},
-      {"--allow-scene-plugins", {"run", "validate", "golden", "materials"}},
-      {"--threads", {"run", "validate", "golden", "bench", "study"}},
-      {"--cases", {"bench", "study"}},
-      {"--csv", {"bench"}},
-      {"--particles", {"bench"}},
-      {"--simd", {"bench"}},
-      {"--tol", {"compare"}},
-      {"-o", {"golden", "study"}},
-      {"--fps", {"preview"}},
-      {"--quick", {"study"}},
+  using C = Command;
+  static const std::vector<std::pair<std::string, std::vector<Command>>> kApplies = {
+      {"--out", {C::run}},
+      {"--force", {C::run, C::golden}},
+      {"--resume", {C::run}},
+      {"--format", {C::run, C::surface}},
+      {"--frames", {C::run, C::golden, C::compare}},
+      {"--set", {C::run, C::validate, C::golden}},
+      {"--plugin", {C::run, C::validate, C::golden, C::materials}},
+      {"--allow-scene-plugins", {C::run, C::validate, C::golden, C::materials}},
+      {"--threads", {C::run, C::validate, C::golden, C::bench, C::study}},
+      {"--cases", {C::bench, C::study}},
+      {"--csv", {C::bench}},
+      {"--particles", {C::bench}},
+      {"--simd", {C::bench}},
+      {"--tol", {C::compare}},
+      {"-o", {C::golden, C::study}},
+      {"--fps", {C::preview}},
+      {"--quick", {C::study}},
   };
   if (!find_command(a.name)) return;
   for (const std::string& flag : a.given)
     for (const auto& [option, commands] : kApplies) {
-      if (flag != option || std::find(commands.begin(), commands.end(), a.name) != commands.end())
+      if (flag != option ||
+          std::find(commands.begin(), commands.end(), a.command) != commands.end())
         continue;
       std::string list;
-      for (const std::string& c : commands) list += (list.empty() ? "" : ", ") + c;
+      for (const Command c : commands)
+        for (const CommandInfo& info : kCommands)
+          if (info.command == c) list += (list.empty() ? "" : ", ") + std::string(info.name);
       usage_error("'mpm " + a.name + "' does not take " + option + " (it would be ignored; " +
                   option + " is for: " + list + ")");
     }
