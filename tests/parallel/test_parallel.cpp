@@ -175,6 +175,9 @@ TEST_CASE("two ranks: contact at the particles is solved as one set on rank 0", 
       one_against_two("water_contact", "scenes/validation/hydrostatic_water.yaml", "", 1));
   check_round_off(one_against_two("dam_break_contact", "scenes/validation/dam_break.yaml",
                                   "--set simulation.contact=particles", 2));
+  // An elastic ball: its surface particles' contact radii are their rest depths, kept by id.
+  check_round_off(one_against_two("rolling_contact", "scenes/validation/rolling_ball.yaml",
+                                  "--set simulation.contact=particles", 2));
 }
 
 TEST_CASE("two ranks: every material, objects that one rank does not hold", "[parallel]") {
