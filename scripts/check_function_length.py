@@ -30,10 +30,11 @@ import os
 import re
 import sys
 
+from source_tree import source_files
+
 LIMIT = 100
 MARKER = "long because"
 SCANNED_ROOTS = ("engine", "materials")
-SOURCE_EXTS = (".h", ".hh", ".hpp", ".cc", ".cpp", ".cxx", ".inl", ".ipp")
 
 # A function head ends with its parameter list's `)`, then any qualifiers, a noexcept(...),
 # a trailing return type, or an all-capitals attribute macro (HWY_ATTR).
@@ -310,23 +311,16 @@ def main(argv):
     root = os.path.abspath(args[0])
     bad, documented, sizes = [], [], []
     files = 0
-    for top in SCANNED_ROOTS:
-        for dirpath, dirnames, filenames in os.walk(os.path.join(root, top)):
-            dirnames.sort()
-            for fn in sorted(filenames):
-                if not fn.endswith(SOURCE_EXTS):
-                    continue
-                full = os.path.join(dirpath, fn)
-                rel = os.path.relpath(full, root).replace(os.sep, "/")
-                files += 1
-                try:
-                    b, d, s = check_file(full, rel)
-                except ValueError as e:
-                    print(f"{rel}: cannot read its functions: {e}", file=sys.stderr)
-                    return 2
-                bad += b
-                documented += d
-                sizes += s
+    for full, rel in source_files(root, SCANNED_ROOTS):
+        files += 1
+        try:
+            b, d, s = check_file(full, rel)
+        except ValueError as e:
+            print(f"{rel}: cannot read its functions: {e}", file=sys.stderr)
+            return 2
+        bad += b
+        documented += d
+        sizes += s
     for rel, line, name, length in documented:
         print(f"note: {rel}:{line}: {name} is {length} lines, long as its comment says",
               file=sys.stderr)

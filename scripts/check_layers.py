@@ -22,6 +22,8 @@ import os
 import re
 import sys
 
+from source_tree import source_files
+
 LAYERS = ["core", "materials", "scene", "step", "parallel", "run", "io", "tools", "cli", "apps"]
 RANK = {name: i for i, name in enumerate(LAYERS)}
 
@@ -39,7 +41,6 @@ PREFIXES = {
     "apps/": "apps",
 }
 SCANNED_ROOTS = ("engine", "materials", "apps")
-SOURCE_EXTS = (".h", ".hh", ".hpp", ".hxx", ".inl", ".ipp", ".c", ".cc", ".cpp", ".cxx")
 
 INCLUDE_RE = re.compile(r'^\s*#\s*include\s*"([^"]+)"')
 
@@ -102,28 +103,21 @@ def main(argv):
     root = os.path.abspath(argv[1])
     violations = []
     files = 0
-    for top in SCANNED_ROOTS:
-        for dirpath, dirnames, filenames in os.walk(os.path.join(root, top)):
-            dirnames.sort()
-            for fn in sorted(filenames):
-                if not fn.endswith(SOURCE_EXTS):
-                    continue
-                full = os.path.join(dirpath, fn)
-                rel = os.path.relpath(full, root).replace(os.sep, "/")
-                src_layer = layer_of(rel)
-                if src_layer is None:
-                    print(f"note: {rel} lies in no layer folder; not checked", file=sys.stderr)
-                    continue
-                files += 1
-                for number, name in include_lines(full):
-                    target = resolve(root, rel, name)
-                    if target is None:
-                        continue
-                    dst_layer = layer_of(target)
-                    if dst_layer is None:
-                        continue
-                    if RANK[dst_layer] > RANK[src_layer]:
-                        violations.append((rel, number, target, dst_layer, src_layer))
+    for full, rel in source_files(root, SCANNED_ROOTS):
+        src_layer = layer_of(rel)
+        if src_layer is None:
+            print(f"note: {rel} lies in no layer folder; not checked", file=sys.stderr)
+            continue
+        files += 1
+        for number, name in include_lines(full):
+            target = resolve(root, rel, name)
+            if target is None:
+                continue
+            dst_layer = layer_of(target)
+            if dst_layer is None:
+                continue
+            if RANK[dst_layer] > RANK[src_layer]:
+                violations.append((rel, number, target, dst_layer, src_layer))
     for rel, number, target, dst, src in violations:
         print(f"{rel}:{number}: includes {target} (layer {dst}) from layer {src}")
     order = " < ".join(LAYERS)

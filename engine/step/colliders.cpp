@@ -71,6 +71,19 @@ std::string key_of(std::size_t k, const char* shape, const char* key) {
   return "walls[" + std::to_string(k) + "]." + shape + "." + key;
 }
 
+/// The signed distance of the closed, placed `mesh` on voxels of `voxel` m, in a narrow band
+/// of `exterior` voxels outside and `interior` inside (OpenVDB meshToVolume, Museth 2013).
+openvdb::FloatGrid::Ptr mesh_signed_distance(const TriangleMesh& mesh, Real voxel, float exterior,
+                                             float interior) {
+  std::vector<openvdb::Vec3s> points;
+  std::vector<openvdb::Vec3I> triangles;
+  for (const Vec3& v : mesh.vertices) points.emplace_back(v.x(), v.y(), v.z());
+  for (const auto& t : mesh.triangles) triangles.emplace_back(t[0], t[1], t[2]);
+  const auto xform = openvdb::math::Transform::createLinearTransform(voxel);
+  return openvdb::tools::meshToSignedDistanceField<openvdb::FloatGrid>(*xform, points, triangles,
+                                                                       {}, exterior, interior);
+}
+
 /// A closed mesh, transformed like an object's, as a signed distance with `voxel` m voxels:
 /// a narrow band of 3 voxels outside and the whole interior (so that a node deep inside still
 /// has a normal). OpenVDB meshToVolume (Museth 2013).
@@ -85,13 +98,8 @@ openvdb::FloatGrid::ConstPtr mesh_level_set(const WallDesc& w, std::size_t k, Re
     throw SceneError(w.file_loc, key_of(k, "mesh", "file"),
                      "'" + w.file.string() + "': " + why + "; a collider mesh must be closed");
   transform_mesh(mesh, w.scale, w.rotation_deg, w.offset);
-  std::vector<openvdb::Vec3s> points;
-  std::vector<openvdb::Vec3I> triangles;
-  for (const Vec3& v : mesh.vertices) points.emplace_back(v.x(), v.y(), v.z());
-  for (const auto& t : mesh.triangles) triangles.emplace_back(t[0], t[1], t[2]);
-  const auto xform = openvdb::math::Transform::createLinearTransform(voxel);
-  openvdb::FloatGrid::Ptr grid = openvdb::tools::meshToSignedDistanceField<openvdb::FloatGrid>(
-      *xform, points, triangles, {}, 3.0f, std::numeric_limits<float>::max());
+  openvdb::FloatGrid::Ptr grid =
+      mesh_signed_distance(mesh, voxel, 3.0f, std::numeric_limits<float>::max());
   if (grid->activeVoxelCount() == 0)
     throw SceneError(w.file_loc, key_of(k, "mesh", "file"),
                      "'" + w.file.string() + "' encloses no volume at the voxel size " +
@@ -141,26 +149,14 @@ openvdb::FloatGrid::ConstPtr read_vdb(const WallDesc& w, std::size_t k) {
 std::vector<Real> depth_below_surface(const TriangleMesh& mesh, std::span<const Vec3> points,
                                       Real voxel, Real cap) {
   openvdb::initialize();  // registers the grid types; safe to call again
-  std::vector<openvdb::Vec3s> vertices;
-  std::vector<openvdb::Vec3I> triangles;
-  for (const Vec3& v : mesh.vertices) vertices.emplace_back(v.x(), v.y(), v.z());
-  for (const auto& t : mesh.triangles) triangles.emplace_back(t[0], t[1], t[2]);
-  const auto xform = openvdb::math::Transform::createLinearTransform(voxel);
-  const float inside = static_cast<float>(cap / voxel) + 2;
-  openvdb::FloatGrid::Ptr grid = openvdb::tools::meshToSignedDistanceField<openvdb::FloatGrid>(
-      *xform, vertices, triangles, {}, 1.0f, inside);
+  const LevelSetGrid sdf(
+      mesh_signed_distance(mesh, voxel, 1.0f, static_cast<float>(cap / voxel) + 2));
   std::vector<Real> depth(points.size());
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(points.size());
-#pragma omp parallel
-  {
-    const auto acc = grid->getConstAccessor();
-#pragma omp for schedule(static)
-    for (std::ptrdiff_t q = 0; q < n; ++q) {
-      const Vec3& x = points[q];
-      const openvdb::Vec3d ijk = xform->worldToIndex(openvdb::Vec3d(x.x(), x.y(), x.z()));
-      const Real d = -static_cast<Real>(openvdb::tools::BoxSampler::sample(acc, ijk));
-      depth[q] = d <= cap ? std::max(d, Real(0)) : Real(-1);
-    }
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t q = 0; q < n; ++q) {
+    const Real d = -sdf.phi(points[q]);
+    depth[q] = d <= cap ? std::max(d, Real(0)) : Real(-1);
   }
   return depth;
 }
