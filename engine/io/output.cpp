@@ -233,6 +233,35 @@ void read_rows(hid_t file, const char* name, std::vector<T>& v, std::size_t widt
 
 }  // namespace
 
+/// The contact impulses of `m` as three datasets (the ids with an entry, their patches and
+/// impulses) and the substep they were found in.
+static void write_contact_memory(hid_t file, const ContactMemory& m) {
+  std::vector<std::uint32_t> patch;
+  std::vector<double> impulse;
+  for (std::uint32_t i : m.ids) {
+    patch.push_back(m.patch[i]);
+    impulse.push_back(m.impulse[i]);
+  }
+  const hsize_t d[1] = {m.ids.size()};
+  write_dataset(file, "contact_id", H5T_STD_U32LE, H5T_NATIVE_UINT32, 1, d, m.ids.data());
+  write_dataset(file, "contact_patch", H5T_STD_U32LE, H5T_NATIVE_UINT32, 1, d, patch.data());
+  write_dataset(file, "contact_impulse", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 1, d, impulse.data());
+  write_attribute(file, "contact_dt", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, static_cast<double>(m.dt));
+}
+
+/// The contact impulses written by write_contact_memory into `m`; none in a checkpoint
+/// without them (written before they were kept).
+static void read_contact_memory(hid_t file, ContactMemory& m) {
+  if (H5Lexists(file, "contact_id", H5P_DEFAULT) <= 0) return;
+  const auto id = read_dataset<std::uint32_t>(file, "contact_id", H5T_NATIVE_UINT32, 1);
+  const auto patch = read_dataset<std::uint32_t>(file, "contact_patch", H5T_NATIVE_UINT32, 1);
+  const auto impulse = read_dataset<double>(file, "contact_impulse", H5T_NATIVE_DOUBLE, 1);
+  if (patch.size() != id.size() || impulse.size() != id.size())
+    throw std::runtime_error("checkpoint: the contact datasets differ in length");
+  m.keep(id, patch, std::vector<Real>(impulse.begin(), impulse.end()),
+         read_attribute<double>(file, "contact_dt", H5T_NATIVE_DOUBLE));
+}
+
 void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, int frame) {
   quiet_hdf5();
   const std::filesystem::path tmp = temporary_path(file);
@@ -254,6 +283,7 @@ void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, 
       const std::string name = "material_state_" + std::to_string(g);
       write_dataset(f.id, name.c_str(), H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 1, dims, st.data());
     }
+    write_contact_memory(f.id, sim.contact_memory());
     write_attribute(f.id, "time", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE,
                     static_cast<double>(sim.time()));
     write_attribute(f.id, "frame", H5T_STD_I32LE, H5T_NATIVE_INT, frame);
@@ -297,6 +327,7 @@ int restore_checkpoint(const std::filesystem::path& file, Simulation& sim) {
       throw std::runtime_error("checkpoint: " + name + " does not match the scene's materials");
     std::copy(d.begin(), d.end(), st.begin());
   }
+  read_contact_memory(f.id, sim.contact_memory());
   sim.set_time(read_attribute<double>(f.id, "time", H5T_NATIVE_DOUBLE));
   sim.set_substeps(read_attribute<unsigned long long>(f.id, "substeps", H5T_NATIVE_ULLONG));
   return read_attribute<int>(f.id, "frame", H5T_NATIVE_INT);

@@ -64,6 +64,7 @@ std::vector<char> pack_contacts(const ContactState& local) {
   put(buf, S);
   put(buf, local.node_velocity.size());
   for (std::size_t c = 0; c < local.size(); ++c) {
+    put(buf, local.id[c]);
     put(buf, local.normal[c]);
     put(buf, local.wall_velocity[c]);
     put(buf, local.gap[c]);
@@ -105,6 +106,7 @@ ContactState merge_contacts(const std::vector<std::vector<char>>& in, std::size_
     const std::size_t first = all.size();
     std::vector<std::uint32_t> refs;
     for (std::size_t c = 0; c < nc; ++c) {
+      all.id.push_back(take<std::uint32_t>(b, pos));
       all.normal.push_back(take<Vec3>(b, pos));
       all.wall_velocity.push_back(take<Vec3>(b, pos));
       all.gap.push_back(take<Real>(b, pos));
@@ -275,7 +277,8 @@ void Domain::return_ghost_velocities(Grid& g) {
     }
 }
 
-Real Domain::solve_contact(const ContactSettings& settings, Real dt, ContactState& local, Grid& g) {
+Real Domain::solve_contact(const ContactSettings& settings, Real dt, ContactState& local, Grid& g,
+                           ContactMemory& memory) {
   const int me = rank(), n = ranks();
   // Every rank's contacts and the nodes they reach, to rank 0.
   std::vector<std::vector<char>> out(n);
@@ -289,7 +292,10 @@ Real Domain::solve_contact(const ContactSettings& settings, Real dt, ContactStat
   std::vector<std::vector<char>> back(n);
   if (me == 0) {
     ContactState all = merge_contacts(in, local.patches);
-    if (all.size() > 0) work = mpm::solve_contact(settings, dt, all);
+    if (all.size() > 0)
+      work = mpm::solve_contact(settings, dt, all, memory);
+    else
+      memory.keep({}, {}, {}, dt);
     std::vector<char> result;
     for (std::size_t i = 1; i < all.node_key.size(); ++i) {
       if (!(all.node_inv_mass[i] > 0)) continue;

@@ -62,9 +62,10 @@ class Domain final : public RankExchange {
   /// Stage contact: every rank's contacts (`local`, found on its own particles) and the
   /// nodes they reach go to rank 0, which solves them as one set (solve_contact,
   /// engine/step/contact.h); every rank then takes the new velocity of each node it stores.
-  /// Returns the walls' work on rank 0, 0 on the others.
-  Real solve_contact(const ContactSettings& settings, Real dt, ContactState& local,
-                     Grid& grid) override;
+  /// Rank 0 starts from and keeps the normal impulses in `memory`. Returns the walls' work on
+  /// rank 0, 0 on the others.
+  Real solve_contact(const ContactSettings& settings, Real dt, ContactState& local, Grid& g,
+                     ContactMemory& memory) override;
   /// Stage migrate, after advect: particles whose stencil base left the slab go to its owner.
   void migrate(Simulation& sim) override;
   /// The advection statistics over all ranks (sum of counts, largest speed).

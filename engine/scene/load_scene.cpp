@@ -230,6 +230,8 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
   if (o.sampling == Sampling::regular && strata * strata * strata != o.particles_per_cell)
     r.fail("sampling", "regular sampling needs particles_per_cell to be a cube (1, 8, 27, ...), not " +
                            std::to_string(o.particles_per_cell));
+  o.initial_stress = read_choice<InitialStress>(
+      r, "initial_stress", {{"none", InitialStress::none}, {"gravity", InitialStress::gravity}});
   o.material = r.require<std::string>("material");
   const MaterialInfo* info = registry.find(o.material);
   if (!info)

@@ -51,6 +51,12 @@ struct SimulationDesc {
 };
 
 /// Where particles go inside each grid cell.
+/// The stress an object starts with.
+enum class InitialStress {
+  none,     ///< Unloaded: F = I.
+  gravity,  ///< At rest under its own weight, a layer with a flat top (settle_under_gravity).
+};
+
 enum class Sampling {
   jittered,  ///< One random point per sub-cell of an n^3 split (random in the cell otherwise).
   regular,   ///< The sub-cell centres: a lattice (particles_per_cell must be a cube).
@@ -86,6 +92,7 @@ struct ObjectDesc {
   std::optional<double> density;   ///< kg/m^3 (or mass).
   int particles_per_cell = 8;      ///< Particles per grid cell.
   Sampling sampling = Sampling::jittered;  ///< Placement inside each cell.
+  InitialStress initial_stress = InitialStress::none;  ///< The stress it starts with.
   std::string material;            ///< Name in the material registry.
   ParamValues params;              ///< The material's parameters, validated.
   FileLoc loc;                     ///< Where the object starts in the scene file.

@@ -50,6 +50,27 @@ namespace mpm {
 /// and the second row of a body sampled on a lattice (1.5 spacings deep), keep half the spacing.
 constexpr Real kRestDepthCap = 1.5;
 
+/// What the contact solve keeps between substeps: each particle's normal impulse on the wall
+/// it touched, which the next substep's solve starts from (warm starting, as Box2D and Jolt
+/// Physics do; Catto 2005, "Iterative dynamics with temporal coherence", GDC). A body resting
+/// on a wall then starts each solve at its last answer, and the few iterations refine it
+/// instead of finding the whole weight again (docs/accuracy.md: without it, the pool at rest
+/// drifts by the part left unsolved in every substep).
+struct ContactMemory {
+  /// The patch value of "no contact".
+  static constexpr std::uint32_t kNone = ~std::uint32_t{0};
+  std::vector<std::uint32_t> patch;  ///< By particle id: the patch of its last contact, or kNone.
+  std::vector<Real> impulse;         ///< By particle id: its normal impulse there, N s.
+  std::vector<std::uint32_t> ids;    ///< The ids with an entry.
+  Real dt = 0;                       ///< The substep those impulses were found in, s.
+
+  /// The impulse to start contact `patch` of particle `id` from, for a substep of `dt`.
+  Real start(std::uint32_t id, std::uint32_t patch, Real dt) const;
+  /// Replaces the entries by the `impulses` of the contacts of particles `id` on `patches`.
+  void keep(const std::vector<std::uint32_t>& id, const std::vector<std::uint32_t>& patches,
+            const std::vector<Real>& impulses, Real dt);
+};
+
 /// Settings of the contact solve.
 struct ContactSettings {
   int iterations = 12;    ///< Most projected Jacobi iterations per substep.
@@ -61,6 +82,7 @@ struct ContactSettings {
 /// compact indices in first-touch order.
 struct ContactState {
   std::vector<std::uint32_t> particle;  ///< Particle of each contact.
+  std::vector<std::uint32_t> id;        ///< Its particle's id.
   std::vector<Vec3> point;              ///< Contact point: the particle projected on the wall.
   std::vector<Vec3> normal;             ///< Wall normal at the particle (into the free side).
   std::vector<Vec3> wall_velocity;      ///< Wall velocity at the particle, m/s.
@@ -99,9 +121,11 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
 
 /// Solves the walls' conditions at the contacts on `state`'s node velocities: sticky, the
 /// velocity relative to the wall is zero; slip and separate, the normal part may only point
-/// away, with Coulomb friction. Returns the work (J) the moving walls did on the grid: the
-/// impulses times the walls' velocities.
-Real solve_contact(const ContactSettings& settings, Real dt, ContactState& state);
+/// away, with Coulomb friction. Starts from the normal impulses in `memory` and keeps the new
+/// ones there. Returns the work (J) the moving walls did on the grid: the impulses times the
+/// walls' velocities.
+Real solve_contact(const ContactSettings& settings, Real dt, ContactState& state,
+                   ContactMemory& memory);
 
 /// Writes `state`'s node velocities back to the grid nodes they came from.
 void write_contact_velocities(const ContactState& state, Grid& grid);
@@ -110,6 +134,7 @@ void write_contact_velocities(const ContactState& state, Grid& grid);
 /// the moving walls.
 Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
                    const ContactSettings& settings, Kernel kernel, Real time, Real dt,
-                   const Particles& particles, Grid& grid, ContactState& state);
+                   const Particles& particles, Grid& grid, ContactState& state,
+                   ContactMemory& memory);
 
 }  // namespace mpm

@@ -14,6 +14,7 @@ class Simulation;
 struct Grid;
 struct AdvectStats;
 struct ContactSettings;
+struct ContactMemory;
 struct ContactState;
 
 /// The exchanges and reductions of a substep over ranks. Every call is collective: all ranks
@@ -27,9 +28,10 @@ class RankExchange {
   virtual void add_ghost_sums(Grid& grid) = 0;
   /// Stage halo_velocity: owners send node mass and velocity back to the ghosts.
   virtual void return_ghost_velocities(Grid& grid) = 0;
-  /// Stage contact_solve: every rank's contacts solved as one set; returns the walls' work.
+  /// Stage contact_solve: every rank's contacts solved as one set, from and into `memory`
+  /// (rank 0's); returns the walls' work.
   virtual Real solve_contact(const ContactSettings& settings, Real dt, ContactState& local,
-                             Grid& grid) = 0;
+                             Grid& grid, ContactMemory& memory) = 0;
   /// Stage migrate: particles that left the slab go to its owner.
   virtual void migrate(Simulation& sim) = 0;
   /// The advection statistics over all ranks.

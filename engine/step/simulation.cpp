@@ -12,6 +12,7 @@
 #include "engine/core/reduce.h"
 #include "engine/scene/mesh.h"
 #include "engine/scene/sampling.h"
+#include "engine/step/initial_state.h"
 #include "engine/step/reorder.h"
 #include "engine/step/simd/stress_simd.h"
 #include "engine/step/simd/transfer_simd.h"
@@ -177,6 +178,19 @@ void add_rest_depth(const TriangleMesh& mesh, const Particles& P, const ObjectIn
   std::copy(depth.begin(), depth.end(), rest_depth.begin() + info.first);
 }
 
+/// Object `od` (scene key `key`, particles `info` of `group`) at rest under the scene's
+/// gravity (initial_stress: gravity); SceneError when it cannot be.
+void settle(const SceneDesc& scene, const ObjectDesc& od, const std::string& key,
+            const ObjectInfo& info, const MaterialGroup& group, Particles& P) {
+  try {
+    settle_under_gravity(scene.simulation.gravity, info.density, std::cbrt(P.object_volume0.back()),
+                         group, {P.x.data() + info.first, info.count},
+                         {P.F.data() + info.first, info.count});
+  } catch (const std::exception& e) {
+    throw SceneError(od.loc, key + ".initial_stress", "object '" + od.name + "': " + e.what());
+  }
+}
+
 /// The registered material of object `od` (scene key `key`); SceneError when unknown.
 const MaterialInfo& object_material(const MaterialRegistry& registry, const ObjectDesc& od,
                                     const std::string& key) {
@@ -223,6 +237,7 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     // below its surface as their radius (engine/step/contact.h).
     if (scene.simulation.contact == Contact::particles && !group->has_plasticity())
       add_rest_depth(mesh, P, info, sim->contact_.rest_depth);
+    if (od.initial_stress == InitialStress::gravity) settle(scene, od, key, info, *group, P);
     const std::size_t n = info.count;
     const Real density = info.density;
     sim->state_stride_.push_back(group->state().size() / n);
@@ -325,7 +340,7 @@ void Simulation::add_boundary_stages() {
       const Kernel kernel = scene_.simulation.kernel;
       if (!domain_) {
         wall_work_ += apply_contact(walls_, colliders_, ContactSettings{}, kernel, time_, dt,
-                                    particles_, grid_, contact_);
+                                    particles_, grid_, contact_, contact_memory_);
         return;
       }
       find_contacts(walls_, colliders_, kernel, time_, dt, particles_, grid_, contact_);
@@ -335,7 +350,7 @@ void Simulation::add_boundary_stages() {
   if (domain_ && (!walls_.empty() || !colliders_.empty()))
     add_exchange("contact_solve", [this](Real dt) {
       if (!domain_->failure().empty()) contact_.clear();
-      wall_work_ += domain_->solve_contact(ContactSettings{}, dt, contact_, grid_);
+      wall_work_ += domain_->solve_contact(ContactSettings{}, dt, contact_, grid_, contact_memory_);
     });
   add_stage("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
 }

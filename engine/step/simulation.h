@@ -99,6 +99,11 @@ class Simulation {
   std::size_t substeps() const { return substeps_; }
   /// Sets the substep count (when restoring a checkpoint).
   void set_substeps(std::size_t n) { substeps_ = n; }
+  /// The contact impulses kept between substeps (checkpointed, so a resumed run continues
+  /// bit for bit).
+  ContactMemory& contact_memory() { return contact_memory_; }
+  /// The contact impulses kept between substeps.
+  const ContactMemory& contact_memory() const { return contact_memory_; }
   /// What advection saw in the last substep (non-finite positions, clamps, top speed).
   const AdvectStats& last_advect() const { return last_advect_; }
   /// Total energy, J: kinetic + elastic + gravitational (relative to the grid origin).
@@ -168,6 +173,7 @@ class Simulation {
   std::vector<WallPlane> walls_;
   std::vector<Collider> colliders_;
   ContactState contact_;  // the contact solve's buffers, reused between substeps
+  ContactMemory contact_memory_;  // the contact impulses, kept between substeps (rank 0's)
   std::vector<Stage> stages_;
   double bound_seconds_ = 0;
   Real time_ = 0;
