@@ -127,7 +127,10 @@ constexpr CommandInfo kCommands[] = {
             [--csv FILE] [--simd on|off]
                                  time standard cases (median of 3 after a warm-up;
                                  two_cubes: the whole scene, once; machine: peak FLOP
-                                 rate and memory bandwidth; --simd off: the scalar path))"},
+                                 rate and memory bandwidth; --simd off: the scalar path)
+  mpm bench SCENE.yaml [--frames N] [--set KEY=VALUE ...] [--threads N] [--csv FILE]
+                                 time your own scene as mpm run runs it (frames to a
+                                 scratch folder): particle-steps/s and time per stage)"},
     {Command::study, "study", cmd_study, false, 1,
      R"(  mpm study [--quick] [--cases SWEEP,...] -o DIR
                                  run the validation cases over sweeps of h, particles per
@@ -264,10 +267,10 @@ void check_options(const Args& a) {
       {"--force", {C::run, C::golden}},
       {"--resume", {C::run}},
       {"--format", {C::run, C::surface}},
-      {"--frames", {C::run, C::golden, C::compare}},
-      {"--set", {C::run, C::validate, C::golden}},
-      {"--plugin", {C::run, C::validate, C::golden, C::materials}},
-      {"--allow-scene-plugins", {C::run, C::validate, C::golden, C::materials}},
+      {"--frames", {C::run, C::golden, C::compare, C::bench}},
+      {"--set", {C::run, C::validate, C::golden, C::bench}},
+      {"--plugin", {C::run, C::validate, C::golden, C::materials, C::bench}},
+      {"--allow-scene-plugins", {C::run, C::validate, C::golden, C::materials, C::bench}},
       {"--threads", {C::run, C::validate, C::golden, C::bench, C::study}},
       {"--cases", {C::bench, C::study}},
       {"--csv", {C::bench}},
@@ -409,8 +412,21 @@ int cmd_bench(const Args& args) {
   if (args.threads) opt.threads = *args.threads;
   if (args.particles) opt.particles = *args.particles;
   if (args.simd) opt.simd = *args.simd;
+  opt.simd_given = args.simd.has_value();
   if (!args.cases.empty()) opt.cases = split_list(args.cases);
+  if (!args.scene.empty()) {
+    if (!args.cases.empty() || args.particles)
+      usage_error(
+          "'mpm bench SCENE.yaml' times the scene; --cases and --particles are for the "
+          "standard cases");
+    opt.scene = args.scene;
+    opt.frames = args.frames;
+    opt.load.plugins = plugin_policy(args);
+  } else if (!args.sets.empty() || args.frames) {
+    usage_error("'mpm bench' takes --set and --frames with a scene: mpm bench SCENE.yaml");
+  }
   try {
+    for (const std::string& s : args.sets) opt.load.overrides.push_back(mpm::parse_override(s));
     // `machine`: the peak FLOP rate and memory bandwidth, for the roofline.
     if (const auto m = std::find(opt.cases.begin(), opt.cases.end(), "machine");
         m != opt.cases.end()) {
@@ -427,6 +443,9 @@ int cmd_bench(const Args& args) {
     }
   } catch (const std::invalid_argument& e) {
     usage_error(e.what());
+  } catch (const mpm::SceneError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return mpm::kExitBadInput;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return mpm::kExitRunFailed;

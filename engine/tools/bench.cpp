@@ -57,13 +57,16 @@ SceneDesc bench_scene(const std::string& material, long particles, double domain
   return s;
 }
 
-/// The seeds' scenes/two_cubes.yaml as `mpm run` runs it (all its frames, its frames and
-/// summary written to a scratch folder, removed after), timed once over the whole run.
-BenchResult run_whole_scene(const std::string& name, bool simd) {
+/// The scene `file` as `mpm run` runs it (`frames` frames, default all; its frames and
+/// summary written to a scratch folder, removed after), timed once over the whole run and
+/// reported as `name`; `simd`, when given, overrides its simulation.simd.
+BenchResult run_whole_scene(const std::string& name, const std::filesystem::path& file,
+                            const LoadOptions& load, std::optional<int> frames,
+                            std::optional<bool> simd) {
   MaterialRegistry registry = builtin_registry();
-  SceneDesc scene = load_scene(std::filesystem::path(MPM_SOURCE_DIR) / "scenes" /
-                                         (name + ".yaml"), registry, LoadOptions{{}, false, {}});
-  scene.simulation.simd = simd;
+  SceneDesc scene = load_scene(file, registry, load);
+  if (simd) scene.simulation.simd = *simd;
+  if (frames) scene.simulation.frames = *frames;
   const auto sim = Simulation::create(scene, registry);
   const std::filesystem::path out = std::filesystem::temp_directory_path() /
                                     ("mpm-bench-" + name + "-" + std::to_string(getpid()));
@@ -86,6 +89,7 @@ BenchResult run_whole_scene(const std::string& name, bool simd) {
   r.particles = static_cast<long>(sim->particles().size());
   r.grid_nodes = static_cast<long>(sim->grid().nodes.cast<double>().prod());
   r.substeps = static_cast<int>(sim->substeps());
+  r.simd = scene.simulation.simd;
   r.threads = omp_get_max_threads();
   const double steps = static_cast<double>(r.particles) * r.substeps;
   r.particle_steps_per_second = steps / run.wall_seconds;  // as `mpm run` reports it
@@ -97,7 +101,9 @@ BenchResult run_whole_scene(const std::string& name, bool simd) {
 }
 
 BenchResult run_case(const std::string& name, const BenchOptions& opt) {
-  if (name == "two_cubes") return run_whole_scene(name, opt.simd);
+  if (name == "two_cubes")
+    return run_whole_scene(name, std::filesystem::path(MPM_SOURCE_DIR) / "scenes/two_cubes.yaml",
+                           LoadOptions{{}, false, {}}, {}, opt.simd);
   SceneDesc scene;
   if (name == "jello") scene = bench_scene("corotated", opt.particles, 1, opt.simd);
   else if (name == "snow") scene = bench_scene("snow", opt.particles, 1, opt.simd);
@@ -166,6 +172,23 @@ BenchResult deserialize(const std::string& text) {
 std::vector<BenchResult> run_benchmarks(const BenchOptions& opt) {
   if (opt.threads > 0) omp_set_num_threads(opt.threads);
   std::vector<BenchResult> out;
+  if (!opt.scene.empty()) {
+    {  // a bad scene is a SceneError here, before any child runs
+      MaterialRegistry registry = builtin_registry();
+      load_scene(opt.scene, registry, opt.load);
+    }
+    const std::string name = std::filesystem::path(opt.scene).stem().string();
+    const std::string text = run_in_child(
+        [&] {
+          return serialize(run_whole_scene(
+                     name, opt.scene, opt.load, opt.frames,
+                     opt.simd_given ? std::optional<bool>(opt.simd) : std::nullopt)) +
+                 "\n";
+        },
+        "bench scene '" + opt.scene + "'");
+    out.push_back(deserialize(text));
+    return out;
+  }
   for (const std::string& name : opt.cases) {
     if (name != "jello" && name != "snow" && name != "sparse" && name != "two_cubes")
       throw std::invalid_argument("unknown bench case '" + name +

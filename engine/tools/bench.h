@@ -1,8 +1,11 @@
 #pragma once
 /// \file `mpm bench`: standard cases timed by the engine itself.
 
+#include <optional>
 #include <string>
 #include <vector>
+
+#include "engine/scene/load_scene.h"
 
 namespace mpm {
 
@@ -16,6 +19,12 @@ struct BenchOptions {
   int repeats = 3;          ///< Timed repetitions (the median is reported), after one warm-up.
   int threads = 0;          ///< 0: all cores.
   bool simd = true;         ///< simulation.simd of every case (false: the scalar double path).
+  /// A scene file to time instead of the cases, as `mpm run` runs it: its frames written to a
+  /// scratch folder, removed after.
+  std::string scene;
+  LoadOptions load;           ///< How to load `scene` (its --set overrides and plugins).
+  std::optional<int> frames;  ///< `scene`'s frames (default: the file's).
+  bool simd_given = false;    ///< `simd` overrides `scene`'s simulation.simd (--simd given).
 };
 
 /// One case's measurements.

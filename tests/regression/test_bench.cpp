@@ -1,8 +1,8 @@
 // `mpm bench` on tiny cases: what it reports, not how fast (timings are never asserted).
-#include <catch2/catch.hpp>
-
 #include <algorithm>
+#include <catch2/catch.hpp>
 #include <cmath>
+#include <filesystem>
 
 #include "engine/tools/bench.h"
 #include "engine/tools/roofline.h"
@@ -59,6 +59,31 @@ TEST_CASE("bench: the sparse case stores the same grid nodes in an 8 times large
   const double a = std::cbrt(static_cast<double>(r[0].stored_nodes) / 64);
   CHECK(r[1].stored_nodes <= 64 * std::pow(a + 1, 3) + 0.5);
   CHECK(r[1].stored_nodes < r[1].grid_nodes / 4);
+}
+
+TEST_CASE("bench SCENE.yaml: any scene, run as mpm run runs it, with its overrides",
+          "[regression]") {
+  // A shipped scene shortened to one frame, its grid coarsened by --set: the figures are the
+  // scene's own (its particle count, its stages: contact at the particles by --set).
+  BenchOptions opt;
+  opt.scene = (std::filesystem::path(MPM_SOURCE_DIR) / "scenes/dam_break.yaml").string();
+  opt.frames = 1;
+  opt.load.overrides = {{"simulation.contact", "particles"}};
+  const std::vector<BenchResult> r = run_benchmarks(opt);
+  REQUIRE(r.size() == 1);
+  CHECK(r[0].name == "dam_break");
+  CHECK(r[0].particles > 1000);
+  CHECK(r[0].substeps > 0);
+  CHECK(r[0].particle_steps_per_second > 0);
+  const auto has = [&](const std::string& stage) {
+    return std::any_of(r[0].stage_ns.begin(), r[0].stage_ns.end(),
+                       [&](const auto& s) { return s.first == stage; });
+  };
+  CHECK(has("contact"));
+  CHECK_FALSE(has("walls"));
+  // A bad override is the scene's error, with the key, before anything runs.
+  opt.load.overrides = {{"simulation.bogus", "1"}};
+  CHECK_THROWS_WITH(run_benchmarks(opt), Catch::Contains("simulation.bogus"));
 }
 
 TEST_CASE("bench refuses an unknown case with the list of cases", "[regression]") {
