@@ -348,35 +348,15 @@ Real scatter_chunk(ContactState& st, const std::vector<Real>& ln, const std::vec
   return work;
 }
 
-/// Starts each contact of `st` from its particle's normal impulse on the same wall in the last
-/// substep (`memory`), applied to the node velocities in contact order. Returns the moving
-/// walls' work of those impulses.
-Real warm_start(Real dt, const ContactMemory& memory, ContactState& st) {
+/// Sets the normal impulses of `st` to `impulse` (one per contact), changing the node
+/// velocities by the difference, in contact order. Returns the moving walls' work of it.
+Real move_normal_impulses(const std::vector<Real>& impulse, ContactState& st) {
   const int S = st.stencil;
   Real work = 0;
-  st.normal_impulse.resize(st.size());
+  st.normal_impulse.resize(st.size(), 0);
   for (std::size_t c = 0; c < st.size(); ++c) {
-    const Real start = memory.start(st.id[c], st.patch[c], dt);
-    st.normal_impulse[c] = start;
-    if (start == 0) continue;
-    work += start * st.normal[c].dot(st.wall_velocity[c]);
-    for (int t = 0; t < S; ++t) {
-      const std::uint32_t i = st.nodes[c * S + t];
-      st.node_velocity[i] += st.weights[c * S + t] * start * st.node_inv_mass[i] * st.normal[c];
-    }
-  }
-  return work;
-}
-
-/// Ends the accelerated iterations: moves the node velocities from the extrapolated normal
-/// impulses (st.normal_impulse) to the projected ones `x`, which st then holds. Returns the
-/// moving walls' work of the difference.
-Real settle_extrapolation(const std::vector<Real>& x, ContactState& st) {
-  const int S = st.stencil;
-  Real work = 0;
-  for (std::size_t c = 0; c < st.size(); ++c) {
-    const Real dn = x[c] - st.normal_impulse[c];
-    st.normal_impulse[c] = x[c];
+    const Real dn = impulse[c] - st.normal_impulse[c];
+    st.normal_impulse[c] = impulse[c];
     if (dn == 0) continue;
     work += dn * st.normal[c].dot(st.wall_velocity[c]);
     for (int t = 0; t < S; ++t) {
@@ -385,6 +365,15 @@ Real settle_extrapolation(const std::vector<Real>& x, ContactState& st) {
     }
   }
   return work;
+}
+
+/// Starts each contact of `st` from its particle's normal impulse on the same wall in the last
+/// substep (`memory`). Returns the moving walls' work of those impulses.
+Real warm_start(Real dt, const ContactMemory& memory, ContactState& st) {
+  std::vector<Real> start(st.size());
+  for (std::size_t c = 0; c < st.size(); ++c) start[c] = memory.start(st.id[c], st.patch[c], dt);
+  st.normal_impulse.assign(st.size(), 0);
+  return move_normal_impulses(start, st);
 }
 
 /// The friction at the nodes over one solve: each node's accumulated friction impulse, and the
@@ -442,22 +431,6 @@ struct NodeFriction {
   }
 };
 
-/// Nesterov's momentum factor, restarted when the velocity change grows.
-struct Momentum {
-  Real t = 1;     ///< Nesterov's t_k.
-  Real beta = 0;  ///< The extrapolation factor of the next iteration.
-  Real last = 0;  ///< The last iteration's velocity change.
-
-  /// After iteration `it`, whose largest squared velocity change was `change`.
-  void next(int it, Real change) {
-    const Real next_t = (1 + std::sqrt(1 + 4 * t * t)) / 2;
-    const bool restart = it > 0 && change > last;
-    beta = restart ? 0 : (t - 1) / next_t;
-    t = restart ? 1 : next_t;
-    last = change;
-  }
-};
-
 }  // namespace
 
 Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
@@ -502,12 +475,6 @@ Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
   const std::ptrdiff_t chunks = std::clamp<std::ptrdiff_t>(sn / kScatterChunk, 1, kMaxChunks);
   std::vector<NodeSums> sums(static_cast<std::size_t>(chunks) * nn);
   std::vector<Real> chunk_work(chunks);
-  // Nesterov's momentum on the normal impulses (accelerated projected gradient, Mazhar et al.
-  // 2015, "Using Nesterov's method to accelerate multibody dynamics with friction and
-  // contact", ACM TOG 34(3)), restarted whenever the velocity change grows (O'Donoghue and
-  // Candes 2015): the impulses `x` are projected, the velocities follow the extrapolated `y`.
-  std::vector<Real> x(st.normal_impulse), y(nc);
-  Momentum momentum;
   Real first_change = 0;
   for (int it = 0; it < settings.iterations; ++it) {
     if (it > 0) interpolate();
@@ -515,8 +482,6 @@ Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
 #pragma omp parallel for schedule(static) reduction(max : largest) if (par)
     for (std::ptrdiff_t c = 0; c < sn; ++c) {
       ln[c] = normal_impulse(st, c, u[c], dt);
-      y[c] = ln[c] + momentum.beta * (ln[c] - x[c]);
-      x[c] = ln[c];
       const Vec3& n = st.normal[c];
       const Vec3 ur = u[c] - st.wall_velocity[c];
       ask[c] = rubs(st, c) ? Vec3(-(ur - ur.dot(n) * n) * st.inv_k[c]) : Vec3::Zero();
@@ -526,16 +491,14 @@ Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
     patch_loads(st, ln, load, rubbers);
 #pragma omp parallel for schedule(static) if (par && chunks > 1)
     for (std::ptrdiff_t k = 0; k < chunks; ++k)
-      chunk_work[k] = scatter_chunk(st, y, ask, load, rubbers, sn * k / chunks,
+      chunk_work[k] = scatter_chunk(st, ln, ask, load, rubbers, sn * k / chunks,
                                     sn * (k + 1) / chunks, &sums[k * nn]);
     for (const Real w : chunk_work) work += w;
     const Real change = friction.apply(sums, chunks, par, st, work);
     // Converged when the velocity changes have fallen by the settings' factor.
     if (it == 0) first_change = change;
-    momentum.next(it, change);
     if (change <= settings.tolerance * settings.tolerance * first_change) break;
   }
-  work += settle_extrapolation(x, st);
   memory.keep(st.id, st.patch, st.normal_impulse, dt);
   return work;
 }

@@ -20,7 +20,8 @@
 /// iterations on accumulated normal impulses (Erleben 2007, "Velocity-based shock
 /// propagation for multibody dynamics animation", ACM TOG 26(2)), each contact's step scaled
 /// by its row sum of W M^-1 W^T, so that a body pressing on a wall as a whole is solved in
-/// one iteration. Friction is Coulomb's bound on the impulses gathered at the nodes, with the
+/// one iteration, and warm-started from each particle's impulse of the last substep
+/// (ContactMemory). Friction is Coulomb's bound on the impulses gathered at the nodes, with the
 /// capacity (mu times the normal impulse) pooled over each wall and object (contact.cpp says
 /// why; docs/accuracy.md, "Walls between the node rows", what it measures).
 /// A particle still a gap g away is held back to -g / dt (speculative contacts, as in Jolt
@@ -73,7 +74,7 @@ struct ContactMemory {
 
 /// Settings of the contact solve.
 struct ContactSettings {
-  int iterations = 12;    ///< Most projected Jacobi iterations per substep.
+  int iterations = 24;    ///< Most projected Jacobi iterations per substep.
   Real tolerance = 1e-3;  ///< Stop when the largest node velocity change falls by this factor.
 };
 
