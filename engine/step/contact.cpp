@@ -348,32 +348,24 @@ Real scatter_chunk(ContactState& st, const std::vector<Real>& ln, const std::vec
   return work;
 }
 
-/// Sets the normal impulses of `st` to `impulse` (one per contact), changing the node
-/// velocities by the difference, in contact order. Returns the moving walls' work of it.
-Real move_normal_impulses(const std::vector<Real>& impulse, ContactState& st) {
+/// Starts each contact of `st` from its particle's normal impulse on the same wall in the last
+/// substep (`memory`), applied to the node velocities in contact order. Returns the moving
+/// walls' work of those impulses.
+Real warm_start(Real dt, const ContactMemory& memory, ContactState& st) {
   const int S = st.stencil;
   Real work = 0;
-  st.normal_impulse.resize(st.size(), 0);
+  st.normal_impulse.assign(st.size(), 0);
   for (std::size_t c = 0; c < st.size(); ++c) {
-    const Real dn = impulse[c] - st.normal_impulse[c];
-    st.normal_impulse[c] = impulse[c];
-    if (dn == 0) continue;
-    work += dn * st.normal[c].dot(st.wall_velocity[c]);
+    const Real start = memory.start(st.id[c], st.patch[c], dt);
+    if (start == 0) continue;
+    st.normal_impulse[c] = start;
+    work += start * st.normal[c].dot(st.wall_velocity[c]);
     for (int t = 0; t < S; ++t) {
       const std::uint32_t i = st.nodes[c * S + t];
-      st.node_velocity[i] += st.weights[c * S + t] * dn * st.node_inv_mass[i] * st.normal[c];
+      st.node_velocity[i] += st.weights[c * S + t] * start * st.node_inv_mass[i] * st.normal[c];
     }
   }
   return work;
-}
-
-/// Starts each contact of `st` from its particle's normal impulse on the same wall in the last
-/// substep (`memory`). Returns the moving walls' work of those impulses.
-Real warm_start(Real dt, const ContactMemory& memory, ContactState& st) {
-  std::vector<Real> start(st.size());
-  for (std::size_t c = 0; c < st.size(); ++c) start[c] = memory.start(st.id[c], st.patch[c], dt);
-  st.normal_impulse.assign(st.size(), 0);
-  return move_normal_impulses(start, st);
 }
 
 /// The friction at the nodes over one solve: each node's accumulated friction impulse, and the

@@ -18,7 +18,8 @@ Mat3 uniaxial(const Vec3& u, Real lambda) {
 }  // namespace
 
 void settle_under_gravity(const Vec3& gravity, Real density, Real spacing,
-                          const MaterialGroup& group, std::span<Vec3> x, std::span<StoredMat3> F) {
+                          const MaterialGroup& group, std::span<const Vec3> x,
+                          std::span<StoredMat3> F) {
   const Real g = gravity.norm();
   if (!(g > 0))
     throw std::runtime_error("initial_stress: gravity needs a nonzero simulation.gravity");

@@ -21,7 +21,8 @@ namespace mpm {
 /// balance. Throws std::runtime_error when gravity is zero or the material cannot hold the
 /// weight of the layer (it would need lambda below kLowestStretch).
 void settle_under_gravity(const Vec3& gravity, Real density, Real spacing,
-                          const MaterialGroup& group, std::span<Vec3> x, std::span<StoredMat3> F);
+                          const MaterialGroup& group, std::span<const Vec3> x,
+                          std::span<StoredMat3> F);
 
 /// The most compression settle_under_gravity accepts: lambda (= J) at least this.
 constexpr Real kLowestStretch = 0.5;
