@@ -55,6 +55,24 @@ class ElasticGroup final : public MaterialGroup {
     return model_elastic_energy(model_, F, volume0);
   }
 
+  bool has_lane_stress() const override { return true; }
+
+  /// The model's own lane kernel, `lane_kirchhoff(batch, volume0)`, if it has one (a model
+  /// written for float lanes, as the stvk plugin's); else each lane in double through
+  /// kirchhoff (the scalar default: inlined, no virtual call per particle).
+  void lane_stress(StressLanes& batch, Real volume0) const override {
+    if constexpr (requires(const Model& m) { m.lane_kirchhoff(batch, volume0); }) {
+      model_.lane_kirchhoff(batch, volume0);
+    } else {
+      for (std::size_t l = 0; l < batch.count; ++l) {
+        Mat3 F;
+        for (int e = 0; e < 9; ++e) F.data()[e] = batch.F[e][l];
+        const Mat3 tau = -volume0 * model_.kirchhoff(F);
+        for (int e = 0; e < 9; ++e) batch.tau[e][l] = static_cast<float>(tau.data()[e]);
+      }
+    }
+  }
+
   BatchModel batch_model() const override {
     if constexpr (requires(const Model& m) {
                     { m.batch() } -> std::same_as<BatchModel>;

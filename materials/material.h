@@ -60,14 +60,45 @@ struct GroupInfo {
   std::uint64_t seed = 1;  ///< The scene's simulation.seed, for seeded initial state.
 };
 
+class MaterialGroup;
+
+/// Particles per batch of MaterialGroup::lane_stress, whatever the engine's vector width.
+inline constexpr std::size_t kStressLanes = 16;
+
+/// One batch of MaterialGroup::lane_stress: up to kStressLanes particles of one group, one per
+/// lane, entries lane-major so that a loop over the lanes vectorises (F[e][l] is entry e of
+/// lane l's F, column-major: e = 3 column + row).
+struct StressLanes {
+  alignas(64) float F[9][kStressLanes];    ///< Each lane's deformation gradient.
+  alignas(64) float tau[9][kStressLanes];  ///< Out: each lane's -V0 tau, Pa m^3.
+  std::uint32_t index[kStressLanes];       ///< Each lane's particle, from the group's first.
+  std::size_t count = 0;                   ///< Lanes in use; the others hold copies of lane 0.
+};
+
 /// A model the engine can also run in float SIMD lanes (engine/step/simd/stress_simd.h), named
-/// with its parameters, so the engine's kernels need no virtual call per particle.
+/// with its parameters, so the engine's kernels need no virtual call per particle: its stress,
+/// folded into the SIMD scatter, and for snow and sand its return map.
 struct BatchModel {
   /// The models with a SIMD kernel.
-  enum class Kind { none, fixed_corotated };
+  /// group: the group's own lane_stress (a plugin's), called once per batch.
+  enum class Kind { none, fixed_corotated, snow, neo_hookean, water, sand, group };
   Kind kind = Kind::none;  ///< none: the engine calls compute_stress.
-  Real mu = 0;             ///< Shear modulus (fixed_corotated), Pa.
-  Real lambda = 0;         ///< First Lamé parameter (fixed_corotated), Pa.
+  Real mu = 0;      ///< Shear modulus (corotated, Neo-Hookean, sand; snow's before hardening), Pa.
+  Real lambda = 0;  ///< First Lamé parameter (as mu), Pa.
+  Real bulk_modulus = 0;           ///< Water's K, Pa.
+  Real gamma = 0;                  ///< Water's Tait exponent.
+  Real hardening = 0;              ///< Snow's xi: mu and lambda scale by exp(xi (1 - Jp)).
+  Real critical_compression = 0;   ///< Snow's theta_c: singular values >= 1 - theta_c.
+  Real critical_stretch = 0;       ///< Snow's theta_s: singular values <= 1 + theta_s.
+  Real min_Jp = 0;                 ///< Snow's smallest Jp.
+  Real alpha = 0;                  ///< Sand's cone slope.
+  Real apex_trace = 0;             ///< Sand's tr(eps) at the cone's apex.
+  bool volume_correction = false;  ///< Sand's volume correction on.
+  /// The group's per-particle plastic state (snow's Jp, which its stress reads), from its first
+  /// particle: MaterialGroup::state(). Null for the others.
+  const Real* state = nullptr;
+  std::size_t first = 0;                 ///< The group's first particle index (set by the engine).
+  const MaterialGroup* group = nullptr;  ///< Kind group: the group whose lane_stress runs.
 };
 
 /// A material applied to one contiguous range of particles.
@@ -115,6 +146,16 @@ class MaterialGroup {
   /// Largest kinematic viscosity eta / rho (m^2/s) over the range, for the explicit viscous
   /// bound on dt; 0 (the default) for a material without viscosity.
   virtual Real max_kinematic_viscosity(std::span<const StoredMat3> F) const { return 0; }
+
+  /// True if lane_stress is implemented: with simulation.simd the engine then folds this
+  /// group's stress into the SIMD scatter, one call per batch of particles, and stores none.
+  /// False (the default): compute_stress runs as its own pass.
+  virtual bool has_lane_stress() const { return false; }
+
+  /// Writes -V0 tau of the batch's particles (`batch.F`, every particle of reference volume
+  /// `volume0`) into `batch.tau`, in float: the plugin entry to the SIMD scatter. Called from
+  /// several threads at once. ElasticGroup implements it for every value-type model.
+  virtual void lane_stress(StressLanes& batch, Real volume0) const {}
 };
 
 /// A registered material: its name, parameter table and factory.

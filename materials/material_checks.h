@@ -252,6 +252,44 @@ inline Failures check_pressure_only(const MaterialInfo& m) {
 }
 
 /// One named generic check.
+/// A group with a lane kernel (MaterialGroup::has_lane_stress): its lane_stress equals its
+/// compute_stress to float rounding, on 64 random F from near rest to 30 % strain, in batches of
+/// kStressLanes with some lanes unused. A group without one passes.
+inline Failures check_lane_stress(const MaterialInfo& m) {
+  Failures out;
+  constexpr std::size_t n = 4 * kStressLanes;
+  const auto group = m.create(params_of(m), GroupInfo{1000, n});
+  if (!group->has_lane_stress()) return out;
+  std::mt19937 rng(3);
+  std::vector<StoredMat3> F(n), ref(n);
+  for (std::size_t q = 0; q < n; ++q)
+    F[q] = to_stored(random_rotation(rng) * random_near_identity(rng, 0.3 * q / n));
+  const Real v0 = 1e-6;
+  group->compute_stress(F, v0, ref);
+  // Float rounding of F and of the stress, amplified by the moduli: 100 float eps of E V0.
+  const double tol = 100 * std::numeric_limits<float>::epsilon() * stress_scale(m) * v0;
+  std::ostringstream s;
+  for (std::size_t q0 = 0; q0 < n; q0 += kStressLanes) {
+    StressLanes batch;
+    batch.count = q0 == 0 ? kStressLanes : kStressLanes - q0 / kStressLanes;  // some unused
+    for (std::size_t l = 0; l < kStressLanes; ++l) {
+      const std::size_t q = q0 + (l < batch.count ? l : 0);
+      for (int e = 0; e < 9; ++e) batch.F[e][l] = static_cast<float>(F[q].data()[e]);
+      batch.index[l] = static_cast<std::uint32_t>(q);
+    }
+    group->lane_stress(batch, v0);
+    for (std::size_t l = 0; l < batch.count; ++l) {
+      Mat3 tau;
+      for (int e = 0; e < 9; ++e) tau.data()[e] = batch.tau[e][l];
+      if (const double d = (tau - to_real(ref[q0 + l])).norm(); !(d <= tol))
+        s << "lane_stress differs from compute_stress by " << d << " > " << tol << " at particle "
+          << q0 + l << "\n";
+    }
+  }
+  if (!s.str().empty()) out.push_back(s.str());
+  return out;
+}
+
 struct Check {
   const char* name;                        ///< Short name, e.g. "rest".
   const char* what;                        ///< What it checks, one line.
@@ -266,6 +304,7 @@ inline const std::vector<Check>& all_checks() {
       {"frame_indifference", "frame indifference and isotropy", check_frame_indifference},
       {"inversion", "finite for nearly singular and inverted F", check_inversion},
       {"wave_speed", "positive wave speed that grows with stiffness", check_wave_speed},
+      {"lane_stress", "lane_stress equals compute_stress to float rounding", check_lane_stress},
   };
   return checks;
 }

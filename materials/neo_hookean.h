@@ -39,6 +39,9 @@ struct NeoHookean {
   /// g''(J) = (lambda + mu - lambda log J) / J^2 (for J >= kJMin).
   Real d2g(Real J) const { return (lambda + mu - lambda * std::log(J)) / (J * J); }
 
+  /// The SIMD lanes' description of this model.
+  BatchModel batch() const { return {BatchModel::Kind::neo_hookean, mu, lambda}; }
+
   /// Energy density psi(F), J/m^3.
   Real energy(const Mat3& F) const {
     return 0.5 * mu * (F.squaredNorm() - 3) + g(F.determinant());

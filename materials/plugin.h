@@ -15,7 +15,7 @@ namespace mpm {
 /// Bumped whenever MaterialInfo, MaterialGroup or MaterialRegistry change layout. The last
 /// digit is sizeof(StoredReal): a plugin built for float particle storage cannot load into a
 /// double build, or the other way round.
-inline constexpr int kPluginAbiVersion = 40 + static_cast<int>(sizeof(StoredReal));
+inline constexpr int kPluginAbiVersion = 50 + static_cast<int>(sizeof(StoredReal));
 
 /// A plugin that cannot be used. The message names the file and the reason.
 class PluginError : public std::runtime_error {

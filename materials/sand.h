@@ -120,6 +120,31 @@ struct DruckerPragerSand {
   }
 };
 
+/// Projects F onto `model`'s yield cone, updating the particle's volume correction `vc`.
+inline void project_sand(const DruckerPragerSand& model, StoredMat3& F, Real& vc) {
+  const Mat3 Fe = to_real(F);
+  // F^T F = V Sigma^2 V^T. For det F > 0 and sigma above the floor, U = F V Sigma^-1, so
+  // the projected U exp(H) V^T is F V diag(exp(H) / sigma) V^T: no U needed.
+  Mat3 V;
+  Vec3 s2;
+  symmetric_eigen(Fe.transpose() * Fe, s2, V);
+  const Real floor2 = DruckerPragerSand::kSigmaMin * DruckerPragerSand::kSigmaMin;
+  if (Fe.determinant() > 0 && s2.minCoeff() > floor2) {
+    const Vec3 s = s2.cwiseSqrt();
+    Vec3 e = s.array().log().matrix();
+    if (model.project(e, vc))
+      F = to_stored(Fe * V * (e.array().exp() / s.array()).matrix().asDiagonal() * V.transpose());
+    return;
+  }
+  // Inverted or crushed: the rotation-variant SVD, rebuilt with positive singular values.
+  Mat3 U;
+  Vec3 s;
+  svd_rv(Fe, U, s, V);
+  Vec3 e = DruckerPragerSand::hencky(s);
+  model.project(e, vc);
+  F = to_stored(U * e.array().exp().matrix().asDiagonal() * V.transpose());
+}
+
 /// MaterialGroup for sand: the per-particle volume correction, for this group's range only.
 class SandGroup final : public PlasticGroup<SandGroup> {
  public:
@@ -135,28 +160,15 @@ class SandGroup final : public PlasticGroup<SandGroup> {
 
   /// Projects particle p's F onto the yield cone, updating its volume correction
   /// (PlasticGroup).
-  void project(StoredMat3& F, std::ptrdiff_t p) {
-    const Mat3 Fe = to_real(F);
-    // F^T F = V Sigma^2 V^T. For det F > 0 and sigma above the floor, U = F V Sigma^-1, so
-    // the projected U exp(H) V^T is F V diag(exp(H) / sigma) V^T: no U needed.
-    Mat3 V;
-    Vec3 s2;
-    symmetric_eigen(Fe.transpose() * Fe, s2, V);
-    const Real floor2 = DruckerPragerSand::kSigmaMin * DruckerPragerSand::kSigmaMin;
-    if (Fe.determinant() > 0 && s2.minCoeff() > floor2) {
-      const Vec3 s = s2.cwiseSqrt();
-      Vec3 e = s.array().log().matrix();
-      if (model_.project(e, state_[p]))
-        F = to_stored(Fe * V * (e.array().exp() / s.array()).matrix().asDiagonal() * V.transpose());
-      return;
-    }
-    // Inverted or crushed: the rotation-variant SVD, rebuilt with positive singular values.
-    Mat3 U;
-    Vec3 s;
-    svd_rv(Fe, U, s, V);
-    Vec3 e = DruckerPragerSand::hencky(s);
-    model_.project(e, state_[p]);
-    F = to_stored(U * e.array().exp().matrix().asDiagonal() * V.transpose());
+  void project(StoredMat3& F, std::ptrdiff_t p) { project_sand(model_, F, state_[p]); }
+
+  /// Sand in lanes: the Hencky stress and the return map.
+  BatchModel batch_model() const override {
+    BatchModel b{BatchModel::Kind::sand, model_.mu, model_.lambda};
+    b.alpha = model_.alpha;
+    b.apex_trace = model_.apex_trace;
+    b.volume_correction = model_.volume_correction;
+    return b;
   }
 
   /// Volume correction of each particle: the log of the plastic volume gained (>= 0).

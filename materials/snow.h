@@ -142,6 +142,17 @@ class SnowGroup final : public PlasticGroup<SnowGroup> {
     if (plastic_.project(Fe, state_[p])) F = to_stored(Fe);
   }
 
+  /// Snow in lanes: the hardened corotated stress and the clamp.
+  BatchModel batch_model() const override {
+    BatchModel b{BatchModel::Kind::snow, elastic_.mu, elastic_.lambda};
+    b.hardening = plastic_.hardening;
+    b.critical_compression = plastic_.critical_compression;
+    b.critical_stretch = plastic_.critical_stretch;
+    b.min_Jp = plastic_.min_Jp;
+    b.state = state_.data();
+    return b;
+  }
+
   /// Plastic volume ratio Jp of each particle in the group.
   const std::vector<Real>& Jp() const { return state_; }
   /// Mutable Jp, for tests and restarts.

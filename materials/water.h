@@ -143,6 +143,16 @@ class WaterGroup final : public MaterialGroup {
 
   std::span<Real> state() override { return rate_; }
 
+  /// Tait water in lanes, without viscosity (whose stress needs the kept strain rate).
+  BatchModel batch_model() const override {
+    BatchModel b;
+    if (eta_ > 0) return b;
+    b.kind = BatchModel::Kind::water;
+    b.bulk_modulus = model_.bulk_modulus;
+    b.gamma = model_.gamma;
+    return b;
+  }
+
   /// The model.
   const TaitWater& model() const { return model_; }
 

@@ -126,6 +126,8 @@ constexpr CommandInfo kCommands[] = {
      R"(  mpm bench [--cases jello,snow,sparse,two_cubes,machine] [--particles N] [--threads N]
             [--csv FILE] [--simd on|off]
                                  time standard cases (median of 3 after a warm-up;
+                                 jello, snow, neo_hookean, sand, water: a falling cube of
+                                 that material; sparse: jello in a larger grid;
                                  two_cubes: the whole scene, once; machine: peak FLOP
                                  rate and memory bandwidth; --simd off: the scalar path)
   mpm bench SCENE.yaml [--frames N] [--set KEY=VALUE ...] [--threads N] [--csv FILE]

@@ -277,44 +277,59 @@ void Simulation::add_exchange(std::string name, std::function<void(Real)> fn) {
   stages_.push_back({std::move(name), std::move(fn), 0.0});
 }
 
-std::vector<BatchModel> Simulation::add_stress_stage() {
+std::vector<BatchModel> Simulation::lane_models() const {
+  std::vector<BatchModel> models;
+  if (!scene_.simulation.simd) return models;
+  for (const auto& m : materials_) {
+    BatchModel b = m.material->batch_model();
+    if (!simd::supports_stress(b)) b = BatchModel{};
+    if (b.kind == BatchModel::Kind::none && m.material->has_lane_stress()) {
+      b.kind = BatchModel::Kind::group;  // the group's own lane kernel (a plugin's)
+      b.group = m.material.get();
+    }
+    b.first = m.first;
+    models.push_back(b);
+  }
+  return models;
+}
+
+bool Simulation::add_stress_stage() {
   const SimulationDesc& s = scene_.simulation;
   // The stress of each group (object), chosen here once per group: with simulation.simd, a
   // group whose model has an engine SIMD kernel gets it folded into the SIMD scatter (no
   // stress array, no pass), or, where the scatter is scalar (FLIP), run as its own SIMD pass;
-  // any other group runs its compute_stress into Particles::stress.
-  const bool simd_transfers = s.simd && simd::supports(s.transfer, s.kernel, grid_);
-  std::vector<BatchModel> batch, fold;
-  bool stored = false;
-  for (const auto& m : materials_) {
-    const BatchModel b = m.material->batch_model();
-    const bool lanes = s.simd && simd::supports_stress(b);
-    fold.push_back(lanes && simd_transfers ? b : BatchModel{});
-    batch.push_back(lanes && !simd_transfers ? b : BatchModel{});
-    stored |= !(lanes && simd_transfers);
-  }
-  if (!std::any_of(fold.begin(), fold.end(),
-                   [](const BatchModel& b) { return b.kind != BatchModel::Kind::none; }))
-    fold.clear();
+  // any other group runs its compute_stress into Particles::stress. The models themselves are
+  // taken at each substep (lane_models): their state moves when particles migrate.
+  const bool fold = s.simd && simd::supports(s.transfer, s.kernel, grid_);
+  const std::vector<BatchModel> models = lane_models();
+  const bool any_lanes = std::any_of(models.begin(), models.end(), [](const BatchModel& b) {
+    return b.kind != BatchModel::Kind::none;
+  });
+  const bool stored = !fold || models.size() < materials_.size() ||
+                      std::any_of(models.begin(), models.end(), [](const BatchModel& b) {
+                        return b.kind == BatchModel::Kind::none;
+                      });
   // Only what the scene calls for is stored.
   stores_stress_ = stored;
   particles_.stress.assign(stored ? particles_.size() : 0, StoredMat3::Zero());
   particles_.stress.shrink_to_fit();
   if (stored)
-    add_stage("compute_stress", [this, batch, fold](Real) {
+    add_stage("compute_stress", [this, fold](Real) {
+      const std::vector<BatchModel> lanes = lane_models();
       for (std::size_t g = 0; g < materials_.size(); ++g) {
-        if (g < fold.size() && fold[g].kind != BatchModel::Kind::none) continue;
+        const bool in_lanes = g < lanes.size() && lanes[g].kind != BatchModel::Kind::none;
+        if (in_lanes && fold) continue;  // the scatter computes it
         const auto& m = materials_[g];
         if (m.count == 0) continue;  // an object with no particles on this rank
         const auto F = slice(std::as_const(particles_.F), m);
         const Real v0 = particles_.volume0(m.first);
-        if (batch[g].kind != BatchModel::Kind::none)
-          simd::stress(batch[g], F, v0, slice(particles_.stress, m));
+        if (in_lanes && simd::supports_stress(lanes[g]))
+          simd::stress(lanes[g], F, v0, slice(particles_.stress, m));
         else
           m.material->compute_stress(F, v0, slice(particles_.stress, m));
       }
     });
-  return fold;
+  return fold && any_lanes;
 }
 
 void Simulation::add_boundary_stages() {
@@ -362,11 +377,12 @@ void Simulation::build_stages() {
             [this](Real) { sort_particles(particles_, scene_.simulation.kernel, grid_, order_); });
   // With more than one rank: the previous rank's ghost blocks get storage here too.
   if (domain_) add_exchange("halo_blocks", [this](Real) { domain_->share_ghost_blocks(grid_); });
-  const std::vector<BatchModel> fold = add_stress_stage();
+  const bool fold = add_stress_stage();
   add_stage("particles_to_grid", [this, fold](Real dt) {
     const SimulationDesc& sd = scene_.simulation;
     particles_to_grid(particles_, order_, sd.transfer, sd.kernel, dt, grid_,
-                      sd.simd ? TransferPath::simd : TransferPath::scalar, fold);
+                      sd.simd ? TransferPath::simd : TransferPath::scalar,
+                      fold ? lane_models() : std::vector<BatchModel>{});
   });
   // Between the transfers, where v and C are dead unless FLIP blends the old v.
   if (s.reorder_every > 0)
@@ -400,9 +416,15 @@ void Simulation::build_stages() {
                                    [](const auto& m) { return m.material->has_plasticity(); });
   if (plastic)
     add_stage("plasticity", [this](Real dt) {
-      for (auto& m : materials_)
-        if (m.material->has_plasticity())
+      const std::vector<BatchModel> lanes = lane_models();
+      for (std::size_t g = 0; g < materials_.size(); ++g) {
+        auto& m = materials_[g];
+        if (!m.material->has_plasticity()) continue;
+        if (g < lanes.size() && simd::supports_projection(lanes[g]))
+          simd::project(lanes[g], slice(particles_.F, m), m.material->state());
+        else
           m.material->apply_plasticity_step(slice(particles_.F, m), dt);
+      }
     });
   // The run's checks see every rank's advection; particles move to their new slab's rank.
   if (domain_ && domain_->test_failure_requested())

@@ -159,8 +159,11 @@ class Simulation {
   /// Appends exchange stage `name` (with more than one rank: runs even after a failure).
   void add_exchange(std::string name, std::function<void(Real)> fn);
   /// Chooses each group's stress path, appends the compute_stress stage when any group stores
-  /// its stress, and returns the models folded into the SIMD scatter (empty: none).
-  std::vector<BatchModel> add_stress_stage();
+  /// its stress, and returns true if the SIMD scatter computes some group's stress.
+  bool add_stress_stage();
+  /// Each group's model in SIMD lanes now (kind none: it has none), with its first particle
+  /// and state; empty without simulation.simd.
+  std::vector<BatchModel> lane_models() const;
   /// Appends the stages of walls, colliders and the domain boundary (simulation.contact).
   void add_boundary_stages();
 

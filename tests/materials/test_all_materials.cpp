@@ -58,6 +58,10 @@ TEST_CASE("every material: positive wave speed that grows with stiffness", "[mat
   check_every_material("wave_speed");
 }
 
+TEST_CASE("every material with a lane kernel: lane_stress equals compute_stress", "[materials]") {
+  check_every_material("lane_stress");
+}
+
 TEST_CASE("the generic checks catch a wrong material", "[materials]") {
   // A model whose stress is twice its energy's derivative, and not zero under rotation.
   MaterialInfo bad = builtin_registry().all().front();
@@ -75,6 +79,10 @@ TEST_CASE("the generic checks catch a wrong material", "[materials]") {
     Real elastic_energy(std::span<const StoredMat3> F, Real v0) const override {
       return inner->elastic_energy(F, v0);
     }
+    bool has_lane_stress() const override { return true; }
+    void lane_stress(StressLanes& b, Real v0) const override {
+      inner->lane_stress(b, v0);  // the undoubled stress: not what compute_stress gives
+    }
   };
   bad.create = [good_create](const ParamValues& v, const GroupInfo& g) {
     auto d = std::make_unique<Doubled>();
@@ -83,6 +91,7 @@ TEST_CASE("the generic checks catch a wrong material", "[materials]") {
   };
   CHECK(!checks::check_rest(bad).empty());
   CHECK(!checks::check_piola(bad).empty());
+  CHECK(!checks::check_lane_stress(bad).empty());
 }
 
 TEST_CASE("every material: `mpm materials` lists every key with unit, default and range",

@@ -70,7 +70,7 @@ TEST_CASE("initial_stress gravity: the stress along gravity is the weight above,
       {"    material: neo_hookean\n    E: 1.0e6\n    nu: 0.45\n", p_wave(1e6, 0.45)},
       {"    material: sand\n    E: 1.0e7\n    nu: 0.3\n", p_wave(1e7, 0.3)}};
   for (const auto& [mat, stiffness] : materials)
-    for (const std::string& gravity : {"[0, -9.81, 0]", "[0, 0, 20]"}) {
+    for (const std::string gravity : {"[0, -9.81, 0]", "[0, 0, 20]"}) {
       INFO(mat << gravity);
       const SceneDesc scene = test::scene_from(layer(mat, 1000, gravity));
       const Vec3 up = -scene.simulation.gravity.normalized();

@@ -24,8 +24,9 @@ std::vector<BenchResult> tiny_bench(std::vector<std::string> cases, int substeps
 }  // namespace
 
 TEST_CASE("bench reports particles, rates and the stages each case runs", "[regression]") {
-  const std::vector<BenchResult> results = tiny_bench({"jello", "snow"}, 3);
-  REQUIRE(results.size() == 2);
+  const std::vector<BenchResult> results =
+      tiny_bench({"jello", "snow", "neo_hookean", "sand", "water"}, 3);
+  REQUIRE(results.size() == 5);
   for (const BenchResult& r : results) {
     INFO(r.name);
     CHECK(r.particles > 1500);
@@ -36,11 +37,12 @@ TEST_CASE("bench reports particles, rates and the stages each case runs", "[regr
       return std::any_of(r.stage_ns.begin(), r.stage_ns.end(),
                          [&](const auto& s) { return s.first == stage; });
     };
-    // jello's corotated stress is folded into the SIMD scatter; snow's plastic group is not.
-    CHECK(has("compute_stress") == (r.name == "snow"));
+    // Every built-in model's stress is folded into the SIMD scatter: no pass, no array.
+    CHECK(!has("compute_stress"));
     CHECK(has("particles_to_grid"));
     CHECK(has("grid_to_particles"));
-    CHECK(has("plasticity") == (r.name == "snow"));  // only what the scene calls for
+    const bool plastic = r.name == "snow" || r.name == "sand" || r.name == "water";
+    CHECK(has("plasticity") == plastic);  // only what the scene calls for
   }
   const std::string table = format_bench_table(results);
   CHECK(table.find("jello") != std::string::npos);

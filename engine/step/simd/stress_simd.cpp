@@ -4,6 +4,10 @@
 #include <cstdint>
 
 #include "materials/corotated.h"
+#include "materials/neo_hookean.h"
+#include "materials/sand.h"
+#include "materials/snow.h"
+#include "materials/water.h"
 
 // Compiled once per instruction set, one chosen at run time (as transfer_simd.cpp).
 #ifndef HWY_DISABLED_TARGETS
@@ -14,7 +18,7 @@
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/highway.h>
 
-#include "engine/step/simd/corotated-inl.h"
+#include "engine/step/simd/materials-inl.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace mpm::simd {
@@ -23,51 +27,123 @@ namespace {
 
 namespace hn = hwy::HWY_NAMESPACE;
 using DF = hn::ScalableTag<float>;
+using VF = hn::Vec<DF>;
 constexpr std::size_t kLanes = HWY_LANES(float);  ///< Lanes of a full vector on this target.
 
-/// Fixed corotated over particles [q0, q0 + count), count <= kLanes, one lane each (the last
-/// particle repeated in unused lanes, which are not written back). Returns the fallbacks.
-std::size_t corotated_batch(const materials::FixedCorotated& model, const StoredMat3* F,
-                            std::size_t count, Real volume0, StoredMat3* out) {
+/// Loads F of particles [0, count), count <= kLanes, one lane each (the last particle repeated
+/// in unused lanes, which are not written back).
+void load_lanes(const StoredMat3* F, std::size_t count, VF f[9]) {
   const DF d;
-  alignas(64) float in[9][kLanes], res[9][kLanes];
+  alignas(64) float in[9][kLanes];
   for (std::size_t l = 0; l < kLanes; ++l) {
-    const StoredReal* f = F[std::min(l, count - 1)].data();
-    for (int e = 0; e < 9; ++e) in[e][l] = static_cast<float>(f[e]);
+    const StoredReal* m = F[std::min(l, count - 1)].data();
+    for (int e = 0; e < 9; ++e) in[e][l] = static_cast<float>(m[e]);
   }
-  hn::Vec<DF> fv[9], tau[9];
-  for (int e = 0; e < 9; ++e) fv[e] = hn::Load(d, in[e]);
-  const auto bad = corotated::neg_v0_tau(d, fv, hn::Set(d, static_cast<float>(2 * model.mu)),
-                                         hn::Set(d, static_cast<float>(model.lambda)),
-                                         hn::Set(d, static_cast<float>(-volume0)), tau);
+  for (int e = 0; e < 9; ++e) f[e] = hn::Load(d, in[e]);
+}
+
+/// The lanes set in `m` among the first `count`, as bits.
+std::uint64_t lane_bits(hn::Mask<DF> m, std::size_t count) {
+  const DF d;
+  if (hn::AllFalse(d, m)) return 0;
+  alignas(8) std::uint8_t bits[8] = {};
+  hn::StoreMaskBits(d, m, bits);
+  std::uint64_t out = 0;
+  for (int b = 0; b < 8; ++b) out |= std::uint64_t{bits[b]} << (8 * b);
+  return count >= 64 ? out : out & ((std::uint64_t{1} << count) - 1);
+}
+
+/// -V0 tau of `model` over particles [0, count), count <= kLanes, of plastic state `state`
+/// (null: none). Returns the fallbacks.
+std::size_t stress_batch(const BatchModel& model, const StoredMat3* F, const Real* state,
+                         std::size_t count, Real volume0, StoredMat3* out) {
+  const DF d;
+  alignas(64) float prm[lanes::kParams][kLanes], res[9][kLanes];
+  for (std::size_t l = 0; l < kLanes; ++l) {
+    float one[lanes::kParams];
+    lanes::lane_params(model, state ? state[std::min(l, count - 1)] : 1, one);
+    for (int k = 0; k < lanes::kParams; ++k) prm[k][l] = one[k];
+  }
+  VF f[9], p[lanes::kParams], tau[9];
+  load_lanes(F, count, f);
+  for (int k = 0; k < lanes::kParams; ++k) p[k] = hn::Load(d, prm[k]);
+  const auto bad =
+      lanes::neg_v0_tau(model.kind, d, f, p, hn::Set(d, static_cast<float>(-volume0)), tau);
   for (int e = 0; e < 9; ++e) hn::Store(tau[e], d, res[e]);
   for (std::size_t l = 0; l < count; ++l) {
     StoredReal* o = out[l].data();
     for (int e = 0; e < 9; ++e) o[e] = static_cast<StoredReal>(res[e][l]);
   }
-  if (hn::AllFalse(d, bad)) return 0;
-  alignas(64) std::uint8_t bits[(kLanes + 7) / 8 + 8] = {};
-  hn::StoreMaskBits(d, bad, bits);
-  std::size_t fallbacks = 0;
+  const std::uint64_t redo = lane_bits(bad, count);
   for (std::size_t l = 0; l < count; ++l)
-    if (bits[l / 8] >> (l % 8) & 1) {
-      out[l] = to_stored(-volume0 * model.kirchhoff(to_real(F[l])));
-      ++fallbacks;
+    if (redo >> l & 1)
+      out[l] = to_stored(-volume0 * kirchhoff(model, to_real(F[l]), state ? state[l] : 1));
+  return static_cast<std::size_t>(__builtin_popcountll(redo));
+}
+
+/// The return map of `model` over particles [0, count), count <= kLanes, and their `state`.
+/// Returns the fallbacks.
+std::size_t project_batch(const BatchModel& model, StoredMat3* F, Real* state, std::size_t count) {
+  const DF d;
+  VF f[9];
+  load_lanes(F, count, f);
+  alignas(64) float st[kLanes], res[9][kLanes];
+  for (std::size_t l = 0; l < kLanes; ++l)
+    st[l] = static_cast<float>(state[std::min(l, count - 1)]);
+  VF delta, df[9];  // snow: Jp's relative change; sand: the new volume correction
+  hn::Mask<DF> changed, bad;
+  const bool snow = model.kind == BatchModel::Kind::snow;
+  if (snow) {
+    const VF one = hn::Set(d, 1.0f);
+    bad = lanes::snow_project(
+        d, f, hn::Sub(one, hn::Set(d, static_cast<float>(model.critical_compression))),
+        hn::Add(one, hn::Set(d, static_cast<float>(model.critical_stretch))), delta, changed, df);
+  } else {
+    bad = lanes::sand_project(d, f, hn::Load(d, st), model, delta, changed, df);
+  }
+  hn::Store(delta, d, st);
+  for (int e = 0; e < 9; ++e) hn::Store(df[e], d, res[e]);
+  const std::uint64_t moved = lane_bits(changed, count), redo = lane_bits(bad, count);
+  for (std::size_t l = 0; l < count; ++l) {
+    if (redo >> l & 1) {
+      project_scalar(model, F[l], state[l]);
+      continue;
     }
-  return fallbacks;
+    // The state in double, as the scalar path keeps it: snow raises every Jp to min_Jp.
+    const bool kept = !(moved >> l & 1);
+    if (snow)
+      state[l] = std::max(kept ? state[l] : state[l] + state[l] * st[l], model.min_Jp);
+    else if (!kept && model.volume_correction)  // sand: the new volume correction
+      state[l] = st[l];
+    if (kept) continue;
+    StoredReal* o = F[l].data();  // F plus the change, in F's storage
+    for (int e = 0; e < 9; ++e) o[e] = static_cast<StoredReal>(o[e] + res[e][l]);
+  }
+  return static_cast<std::size_t>(__builtin_popcountll(redo));
 }
 
 }  // namespace
 
-std::size_t CorotatedStressImpl(Real mu, Real lambda, const StoredMat3* F, std::size_t n,
-                                Real volume0, StoredMat3* out) {
-  const materials::FixedCorotated model{mu, lambda};
+std::size_t StressImpl(const BatchModel& model, const StoredMat3* F, std::size_t n, Real volume0,
+                       StoredMat3* out) {
   const std::ptrdiff_t batches = static_cast<std::ptrdiff_t>((n + kLanes - 1) / kLanes);
   std::size_t fallbacks = 0;
 #pragma omp parallel for schedule(static) reduction(+ : fallbacks) if (n >= kParallelMinItems)
   for (std::ptrdiff_t b = 0; b < batches; ++b) {
     const std::size_t q0 = static_cast<std::size_t>(b) * kLanes;
-    fallbacks += corotated_batch(model, F + q0, std::min(kLanes, n - q0), volume0, out + q0);
+    fallbacks += stress_batch(model, F + q0, model.state ? model.state + q0 : nullptr,
+                              std::min(kLanes, n - q0), volume0, out + q0);
+  }
+  return fallbacks;
+}
+
+std::size_t ProjectImpl(const BatchModel& model, StoredMat3* F, Real* state, std::size_t n) {
+  const std::ptrdiff_t batches = static_cast<std::ptrdiff_t>((n + kLanes - 1) / kLanes);
+  std::size_t fallbacks = 0;
+#pragma omp parallel for schedule(static) reduction(+ : fallbacks) if (n >= kParallelMinItems)
+  for (std::ptrdiff_t b = 0; b < batches; ++b) {
+    const std::size_t q0 = static_cast<std::size_t>(b) * kLanes;
+    fallbacks += project_batch(model, F + q0, state + q0, std::min(kLanes, n - q0));
   }
   return fallbacks;
 }
@@ -79,17 +155,64 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace mpm::simd {
 
-HWY_EXPORT(CorotatedStressImpl);
+HWY_EXPORT(StressImpl);
+HWY_EXPORT(ProjectImpl);
 
 bool supports_stress(const BatchModel& model) {
-  return model.kind == BatchModel::Kind::fixed_corotated;
+  return model.kind != BatchModel::Kind::none && model.kind != BatchModel::Kind::group;
 }
 
 std::size_t stress(const BatchModel& model, std::span<const StoredMat3> F, Real volume0,
                    std::span<StoredMat3> out) {
   if (F.empty()) return 0;
-  return HWY_DYNAMIC_DISPATCH(CorotatedStressImpl)(model.mu, model.lambda, F.data(), F.size(),
-                                                   volume0, out.data());
+  return HWY_DYNAMIC_DISPATCH(StressImpl)(model, F.data(), F.size(), volume0, out.data());
+}
+
+Mat3 kirchhoff(const BatchModel& model, const Mat3& F, Real state) {
+  using K = BatchModel::Kind;
+  switch (model.kind) {
+    case K::fixed_corotated:
+      return materials::FixedCorotated{model.mu, model.lambda}.kirchhoff(F);
+    case K::snow: {
+      const Real h = std::exp(model.hardening * (1 - state));
+      return materials::FixedCorotated{model.mu * h, model.lambda * h}.kirchhoff(F);
+    }
+    case K::neo_hookean:
+      return materials::NeoHookean{model.mu, model.lambda}.kirchhoff(F);
+    case K::water:
+      return materials::TaitWater{model.bulk_modulus, model.gamma}.kirchhoff(F);
+    case K::sand:
+      return materials::DruckerPragerSand{model.mu, model.lambda}.kirchhoff(F);
+    case K::none:
+    case K::group:
+      break;
+  }
+  return Mat3::Zero();
+}
+
+bool supports_projection(const BatchModel& model) {
+  return model.kind == BatchModel::Kind::snow || model.kind == BatchModel::Kind::sand;
+}
+
+std::size_t project(const BatchModel& model, std::span<StoredMat3> F, std::span<Real> state) {
+  if (F.empty()) return 0;
+  return HWY_DYNAMIC_DISPATCH(ProjectImpl)(model, F.data(), state.data(), F.size());
+}
+
+void project_scalar(const BatchModel& model, StoredMat3& F, Real& state) {
+  if (model.kind == BatchModel::Kind::snow) {
+    materials::SnowPlasticity plastic;
+    plastic.critical_compression = model.critical_compression;
+    plastic.critical_stretch = model.critical_stretch;
+    plastic.hardening = model.hardening;
+    plastic.min_Jp = model.min_Jp;
+    Mat3 Fe = to_real(F);
+    if (plastic.project(Fe, state)) F = to_stored(Fe);
+    return;
+  }
+  if (model.kind == BatchModel::Kind::sand)
+    materials::project_sand(
+        {model.mu, model.lambda, model.alpha, model.apex_trace, model.volume_correction}, F, state);
 }
 
 }  // namespace mpm::simd

@@ -17,8 +17,8 @@
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/highway.h>
 
-#include "engine/step/simd/corotated-inl.h"
-#include "materials/corotated.h"
+#include "engine/step/simd/materials-inl.h"
+#include "engine/step/simd/stress_simd.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace mpm::simd {
@@ -175,75 +175,132 @@ struct StressBatch {
   alignas(64) float tau[9][kLanes];  ///< -V0 tau per lane, column-major.
 };
 
+/// The model `fold` names for object o (kind none: its stress is in p.stress).
+inline const BatchModel* folded(std::span<const BatchModel> fold, std::uint32_t o) {
+  return o < fold.size() && fold[o].kind != BatchModel::Kind::none ? &fold[o] : nullptr;
+}
+
+/// The plastic state the stress of particle pi of model m reads (snow's Jp), or 1.
+inline Real lane_state(const BatchModel& m, std::uint32_t pi) {
+  return m.state ? m.state[pi - m.first] : 1;
+}
+
+/// The lanes `lanes` of the batch at order[b0, ...) whose model is a group's own lane kernel
+/// (kind group, a plugin's): one MaterialGroup::lane_stress call per group among them.
+void group_stress(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
+                  std::size_t b0, std::uint64_t lanes, StressBatch& sb) {
+  static_assert(kLanes <= kStressLanes, "a batch fits one lane_stress call");
+  while (lanes) {
+    const std::uint32_t o = p.object[ord.order[b0 + __builtin_ctzll(lanes)]];
+    const BatchModel& m = fold[o];
+    StressLanes batch;
+    std::size_t slot[kStressLanes];
+    for (std::uint64_t rest = lanes; rest; rest &= rest - 1) {
+      const std::size_t l = __builtin_ctzll(rest);
+      const std::uint32_t pi = ord.order[b0 + l];
+      if (p.object[pi] != o) continue;
+      lanes &= ~(std::uint64_t{1} << l);
+      for (int e = 0; e < 9; ++e) batch.F[e][batch.count] = static_cast<float>(p.F[pi].data()[e]);
+      batch.index[batch.count] = static_cast<std::uint32_t>(pi - m.first);
+      slot[batch.count++] = l;
+    }
+    for (std::size_t l = batch.count; l < kStressLanes; ++l) {
+      for (int e = 0; e < 9; ++e) batch.F[e][l] = batch.F[e][0];
+      batch.index[l] = batch.index[0];
+    }
+    m.group->lane_stress(batch, p.object_volume0[o]);
+    for (std::size_t n = 0; n < batch.count; ++n)
+      for (int e = 0; e < 9; ++e) sb.tau[e][slot[n]] = batch.tau[e][n];
+  }
+}
+
 /// Fills `sb` with the stresses of order[b0, min(b0 + kLanes, end)); `consecutive`: they are
 /// kLanes consecutive particles (consecutive_batch), whose F load_matrices reads; `uniform`:
-/// and they belong to one object (one_object).
+/// and they belong to one object (one_object). Each model kind among the lanes runs its lane
+/// kernel once over the batch (lanes::neg_v0_tau), kept in its own lanes.
 void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
                  std::size_t b0, std::size_t end, bool consecutive, bool uniform, StressBatch& sb) {
   const DF d;
+  const DI di;
   sb.b0 = b0;
   sb.b1 = std::min(end, b0 + kLanes);
   const std::size_t count = sb.b1 - b0;
-  alignas(64) float in[9][kLanes], mu2[kLanes], lam[kLanes], nv0[kLanes];
-  bool any = false;
-  const auto folded = [&](std::uint32_t o) {
-    return o < fold.size() && fold[o].kind == BatchModel::Kind::fixed_corotated;
-  };
-  if (uniform) {
-    const std::uint32_t o = p.object[ord.order[b0]];
-    any = folded(o);
-    if (any) {
-      hn::Store(hn::Set(d, static_cast<float>(2 * fold[o].mu)), d, mu2);
-      hn::Store(hn::Set(d, static_cast<float>(fold[o].lambda)), d, lam);
-      hn::Store(hn::Set(d, static_cast<float>(-p.object_volume0[o])), d, nv0);
-    }
+  alignas(64) float in[9][kLanes], prm[lanes::kParams][kLanes], nv0[kLanes];
+  alignas(64) std::int32_t kind[kLanes];
+  unsigned present = 0;  // bit k: some lane's model is of kind k
+  const BatchModel* one = uniform ? folded(fold, p.object[ord.order[b0]]) : nullptr;
+  if (uniform && one && !one->state) {
+    float v[lanes::kParams];
+    lanes::lane_params(*one, 1, v);
+    for (int k = 0; k < lanes::kParams; ++k) hn::Store(hn::Set(d, v[k]), d, prm[k]);
+    hn::Store(hn::Set(d, static_cast<float>(-p.object_volume0[p.object[ord.order[b0]]])), d, nv0);
+    present = 1u << static_cast<int>(one->kind);
   }
-  for (std::size_t l = 0; l < kLanes && !uniform; ++l) {
+  for (std::size_t l = 0; l < kLanes && !(uniform && (!one || !one->state)); ++l) {
     const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
     const std::uint32_t o = p.object[pi];
-    const bool lane = folded(o);
-    any |= lane && l < count;
+    const BatchModel* m = folded(fold, o);
+    kind[l] = static_cast<std::int32_t>(m ? m->kind : BatchModel::Kind::none);
+    if (m && l < count) present |= 1u << kind[l];
     if (!consecutive) {
       const StoredReal* f = p.F[pi].data();
       for (int e = 0; e < 9; ++e) in[e][l] = static_cast<float>(f[e]);
     }
-    mu2[l] = lane ? static_cast<float>(2 * fold[o].mu) : 0.0f;
-    lam[l] = lane ? static_cast<float>(fold[o].lambda) : 0.0f;
+    float v[lanes::kParams] = {};
+    if (m) lanes::lane_params(*m, lane_state(*m, pi), v);
+    for (int k = 0; k < lanes::kParams; ++k) prm[k][l] = v[k];
     nv0[l] = static_cast<float>(-p.object_volume0[o]);
   }
   std::uint64_t bad = 0;
-  if (any) {
-    hn::Vec<DF> fv[9], tau[9];
+  if (present) {
+    VF fv[9], tau[9], pv[lanes::kParams];
     if (consecutive)
       load_matrices(p.F[ord.order[b0]].data(), fv);
     else
       for (int e = 0; e < 9; ++e) fv[e] = hn::Load(d, in[e]);
-    const auto m =
-        corotated::neg_v0_tau(d, fv, hn::Load(d, mu2), hn::Load(d, lam), hn::Load(d, nv0), tau);
+    for (int k = 0; k < lanes::kParams; ++k) pv[k] = hn::Load(d, prm[k]);
+    const VF v0 = hn::Load(d, nv0);
+    hn::Mask<DF> redo = hn::FirstN(d, 0);
+    for (int k = 0; present >> k; ++k) {
+      if (!(present >> k & 1) || k == static_cast<int>(BatchModel::Kind::group)) continue;
+      VF mine[9];
+      const auto m = lanes::neg_v0_tau(static_cast<BatchModel::Kind>(k), d, fv, pv, v0, mine);
+      if (uniform) {
+        for (int e = 0; e < 9; ++e) tau[e] = mine[e];
+        redo = m;
+        continue;
+      }
+      const auto lane = hn::RebindMask(d, hn::Eq(hn::Load(di, kind), hn::Set(di, k)));
+      for (int e = 0; e < 9; ++e) tau[e] = hn::IfThenElse(lane, mine[e], tau[e]);
+      redo = hn::Or(redo, hn::And(lane, m));
+    }
     for (int e = 0; e < 9; ++e) hn::Store(tau[e], d, sb.tau[e]);
-    if (!hn::AllFalse(d, m)) {
+    if (!hn::AllFalse(d, redo)) {
       alignas(8) std::uint8_t bits[8] = {};
-      hn::StoreMaskBits(d, m, bits);
+      hn::StoreMaskBits(d, redo, bits);
       for (int b = 0; b < 8; ++b) bad |= std::uint64_t{bits[b]} << (8 * b);
     }
   }
-  if (uniform && any && bad == 0) return;  // every lane computed
+  const bool groups = present >> static_cast<int>(BatchModel::Kind::group) & 1;
+  if (uniform && present && bad == 0 && !groups) return;  // every lane computed
+  std::uint64_t group_lanes = 0;
   for (std::size_t l = 0; l < count; ++l) {
     const std::uint32_t pi = ord.order[b0 + l];
     const std::uint32_t o = p.object[pi];
-    const bool lane = folded(o);
-    if (lane && !(bad >> l & 1)) continue;
+    const BatchModel* m = folded(fold, o);
+    if (m && m->kind == BatchModel::Kind::group) {
+      group_lanes |= std::uint64_t{1} << l;
+      continue;
+    }
+    if (m && !(bad >> l & 1)) continue;
     // Not folded (the stress stage wrote p.stress), or a lane the float quaternion cannot
     // give to float accuracy: the scalar double model, as simd::stress does.
-    StoredMat3 t;
-    if (lane)
-      t = to_stored(
-          -p.object_volume0[o] *
-          materials::FixedCorotated{fold[o].mu, fold[o].lambda}.kirchhoff(to_real(p.F[pi])));
-    else
-      t = p.stress[pi];
+    const StoredMat3 t =
+        m ? to_stored(-p.object_volume0[o] * kirchhoff(*m, to_real(p.F[pi]), lane_state(*m, pi)))
+          : p.stress[pi];
     for (int e = 0; e < 9; ++e) sb.tau[e][l] = static_cast<float>(t.data()[e]);
   }
+  if (group_lanes) group_stress(p, ord, fold, b0, group_lanes, sb);
 }
 
 /// What the scatter needs of the particles order[b0, b1) (kLanes of them, clamped to the

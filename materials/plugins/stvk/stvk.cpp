@@ -29,6 +29,39 @@ struct StVenantKirchhoff {
     const mpm::Mat3 S = 2 * mu * E + lambda * E.trace() * mpm::Mat3::Identity();
     return F * S * F.transpose();  // tau = P F^T = F S F^T
   }
+  /// -V0 tau of a batch of particles in float lanes, the same formula: the plugin's entry to the
+  /// engine's SIMD scatter (MaterialGroup::lane_stress). Each loop runs over the lanes, so the
+  /// compiler vectorises it.
+  void lane_kirchhoff(mpm::StressLanes& b, mpm::Real volume0) const {
+    constexpr std::size_t L = mpm::kStressLanes;
+    const float two_mu = static_cast<float>(2 * mu), lam = static_cast<float>(lambda);
+    const float v0 = static_cast<float>(volume0);
+    const auto F = [&](int r, int c, std::size_t l) { return b.F[3 * c + r][l]; };
+    float S[3][3][L];  // E = (F^T F - I) / 2 first, then S = 2 mu E + lambda tr(E) I
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        for (std::size_t l = 0; l < L; ++l) {
+          const float c =
+              F(0, i, l) * F(0, j, l) + F(1, i, l) * F(1, j, l) + F(2, i, l) * F(2, j, l);
+          S[i][j][l] = 0.5f * (c - (i == j ? 1.0f : 0.0f));
+        }
+    for (std::size_t l = 0; l < L; ++l) {
+      const float tr = S[0][0][l] + S[1][1][l] + S[2][2][l];
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) S[i][j][l] = two_mu * S[i][j][l] + (i == j ? lam * tr : 0.0f);
+    }
+    float FS[3][3][L];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c)
+        for (std::size_t l = 0; l < L; ++l)
+          FS[r][c][l] = F(r, 0, l) * S[0][c][l] + F(r, 1, l) * S[1][c][l] + F(r, 2, l) * S[2][c][l];
+    for (int r = 0; r < 3; ++r)  // tau = F S F^T, times -V0
+      for (int c = 0; c < 3; ++c)
+        for (std::size_t l = 0; l < L; ++l)
+          b.tau[3 * c + r][l] = -v0 * (FS[r][0][l] * F(c, 0, l) + FS[r][1][l] * F(c, 1, l) +
+                                       FS[r][2][l] * F(c, 2, l));
+  }
+
   /// A bound on every wave speed at F, m/s: exactly sqrt((lambda + 2 mu) / rho0) at rest, and
   /// never below it (StVK softens under compression; the time step does not grow with that).
   ///
