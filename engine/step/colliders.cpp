@@ -228,7 +228,14 @@ Real apply_colliders(const std::vector<Collider>& colliders, Real time, Grid& g)
     moving = moving || poses.back().velocity.squaredNorm() > 0 ||
              poses.back().angular_velocity.squaredNorm() > 0;
   }
-  return constrain_nodes(g, [&](const Vec3& x, Vec3& v, Real m) {
+  // A block is near a collider where its box meets the collider's bounds.
+  const auto near = [&](const Vec3& lo, const Vec3& hi) {
+    const Eigen::AlignedBox<Real, 3> box(lo, hi);
+    for (const ColliderPose& p : poses)
+      if (p.bounds.intersects(box)) return true;
+    return false;
+  };
+  return constrain_nodes(g, near, [&](const Vec3& x, Vec3& v, Real m) {
     Real node_work = 0;
     for (std::size_t c = 0; c < colliders.size(); ++c) {
       const ColliderPose& p = poses[c];

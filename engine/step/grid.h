@@ -104,21 +104,30 @@ struct Grid {
   void release_blocks();
 };
 
-/// Calls f(i, j, k, idx) for every node of every active block, in parallel over blocks. A
-/// block is visited by one thread, so f may accumulate into per-block (idx / 64) slots.
-template <class Fn>
-void for_each_active_node(const Grid& g, Fn&& f) {
+/// Calls f(i, j, k, idx) for every node of every active block whose first node o passes
+/// `visit(o)`, in parallel over blocks. A block is visited by one thread, so f may accumulate
+/// into per-block (idx / 64) slots. A stage that acts near a wall skips the other blocks whole.
+template <class Visit, class Fn>
+void for_each_active_node(const Grid& g, Visit&& visit, Fn&& f) {
   const std::ptrdiff_t nb = static_cast<std::ptrdiff_t>(g.active_blocks());
   constexpr int E = Grid::kBlockEdge;
 #pragma omp parallel for schedule(static) if (nb * Grid::kBlockNodes >= kParallelMinItems)
   for (std::ptrdiff_t b = 0; b < nb; ++b) {
     const Vec3i o = g.block_first[b];
+    if (!visit(o)) continue;
     std::size_t idx = static_cast<std::size_t>(b) * Grid::kBlockNodes;
     for (int i = o.x(); i < o.x() + E; ++i)
       for (int j = o.y(); j < o.y() + E; ++j)
         for (int k = o.z(); k < o.z() + E; ++k, ++idx)
           if (i < g.nodes.x() && j < g.nodes.y() && k < g.nodes.z()) f(i, j, k, idx);
   }
+}
+
+/// Calls f(i, j, k, idx) for every node of every active block (as above, every block visited).
+template <class Fn>
+void for_each_active_node(const Grid& g, Fn&& f) {
+  for_each_active_node(
+      g, [](const Vec3i&) { return true; }, f);
 }
 
 }  // namespace mpm

@@ -72,7 +72,18 @@ Real apply_walls(const std::vector<WallPlane>& planes, Real time, Grid& g) {
     placed.push_back({w.point + w.offset(time), w.velocity_at(time)});
     moving = moving || placed.back().velocity.squaredNorm() > 0;
   }
-  return constrain_nodes(g, [&](const Vec3& x, Vec3& v, Real m) {
+  // A block is near a plane where its box reaches the plane's back side: the box's lowest
+  // point along the normal, centre minus half extent along |n|, with a margin for round-off.
+  const auto near = [&](const Vec3& lo, const Vec3& hi) {
+    const Vec3 centre = Real(0.5) * (lo + hi), half = Real(0.5) * (hi - lo);
+    for (std::size_t w = 0; w < planes.size(); ++w) {
+      const Vec3& n = planes[w].normal;
+      if ((centre - placed[w].point).dot(n) - half.dot(n.cwiseAbs()) <= 1e-6 * half.norm())
+        return true;
+    }
+    return false;
+  };
+  return constrain_nodes(g, near, [&](const Vec3& x, Vec3& v, Real m) {
     Real node_work = 0;
     for (std::size_t w = 0; w < planes.size(); ++w) {
       const WallPlane& p = planes[w];
@@ -89,7 +100,12 @@ Real apply_walls(const std::vector<WallPlane>& planes, Real time, Grid& g) {
 
 void apply_domain_boundary(Grid& g) {
   const Vec3i last = g.nodes - Vec3i::Ones();
-  for_each_active_node(g, [&](int i, int j, int k, std::size_t idx) {
+  // Only blocks that reach the buffer layers have nodes to change.
+  const auto near = [&](const Vec3i& o) {
+    return (o.array() <= g.buffer).any() ||
+           (o.array() + Grid::kBlockEdge - 1 >= last.array() - g.buffer).any();
+  };
+  for_each_active_node(g, near, [&](int i, int j, int k, std::size_t idx) {
     const Vec3i n(i, j, k);
     Vec3& v = g.velocity[idx];
     for (int a = 0; a < 3; ++a) {

@@ -46,12 +46,18 @@ void apply_domain_boundary(Grid& grid);
 Vec3 wall_velocity(const Vec3& v, const Vec3& n, Boundary b, Real friction);
 
 /// Sets the velocity of every active node with mass to `f(x, v, m)` (x its position, v its
-/// velocity, m its mass), which returns the work the condition did on the node, or 0. Returns
-/// the total work, summed per block and then in block order: the same for any thread count.
-template <class Fn>
-Real constrain_nodes(Grid& g, Fn&& f) {
+/// velocity, m its mass), which returns the work the condition did on the node, or 0, in the
+/// blocks whose box [lo, hi] of node positions passes `near(lo, hi)` (f must leave the nodes of
+/// the others alone: it is not called there). Returns the total work, summed per block and then
+/// in block order: the same for any thread count.
+template <class Near, class Fn>
+Real constrain_nodes(Grid& g, Near&& near, Fn&& f) {
+  constexpr int E = Grid::kBlockEdge - 1;
   std::vector<Real> work(g.active_blocks(), 0);
-  for_each_active_node(g, [&](int i, int j, int k, std::size_t idx) {
+  const auto visit = [&](const Vec3i& o) {
+    return near(g.position(o.x(), o.y(), o.z()), g.position(o.x() + E, o.y() + E, o.z() + E));
+  };
+  for_each_active_node(g, visit, [&](int i, int j, int k, std::size_t idx) {
     if (g.mass[idx] <= 0) return;
     work[idx / Grid::kBlockNodes] += f(g.position(i, j, k), g.velocity[idx], g.mass[idx]);
   });
