@@ -294,7 +294,7 @@ TEST_CASE(
     WARN("no SIMD target on this CPU");
     return;
   }
-  // Two objects: 0 folded (fixed corotated), 1 not (its stress read from p.stress); or, in
+  // Two objects: 0 folded (each model in turn), 1 not (its stress read from p.stress); or, in
   // cell order, object 0 alone (batches of one object: the model set once per batch).
   using K = BatchModel::Kind;
   std::vector<BatchModel> models;
