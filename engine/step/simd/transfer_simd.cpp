@@ -229,14 +229,18 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
   alignas(64) std::int32_t kind[kLanes];
   unsigned present = 0;  // bit k: some lane's model is of kind k
   const BatchModel* one = uniform ? folded(fold, p.object[ord.order[b0]]) : nullptr;
-  if (uniform && one && !one->state) {
+  if (one) {  // kLanes consecutive particles of one object: its parameters set once
     float v[lanes::kParams];
     lanes::lane_params(*one, 1, v);
     for (int k = 0; k < lanes::kParams; ++k) hn::Store(hn::Set(d, v[k]), d, prm[k]);
+    if (one->state) {  // snow's Jp, consecutive too
+      const Real* s = one->state + (ord.order[b0] - one->first);
+      for (std::size_t l = 0; l < kLanes; ++l) prm[3][l] = static_cast<float>(s[l]);
+    }
     hn::Store(hn::Set(d, static_cast<float>(-p.object_volume0[p.object[ord.order[b0]]])), d, nv0);
     present = 1u << static_cast<int>(one->kind);
   }
-  for (std::size_t l = 0; l < kLanes && !(uniform && (!one || !one->state)); ++l) {
+  for (std::size_t l = 0; l < kLanes && !uniform; ++l) {
     const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
     const std::uint32_t o = p.object[pi];
     const BatchModel* m = folded(fold, o);
