@@ -305,10 +305,9 @@ bool Simulation::add_stress_stage() {
   const bool any_lanes = std::any_of(models.begin(), models.end(), [](const BatchModel& b) {
     return b.kind != BatchModel::Kind::none;
   });
-  const bool stored = !fold || models.size() < materials_.size() ||
-                      std::any_of(models.begin(), models.end(), [](const BatchModel& b) {
-                        return b.kind == BatchModel::Kind::none;
-                      });
+  const bool stored = !fold || std::any_of(models.begin(), models.end(), [](const BatchModel& b) {
+    return b.kind == BatchModel::Kind::none;
+  });
   // Only what the scene calls for is stored.
   stores_stress_ = stored;
   particles_.stress.assign(stored ? particles_.size() : 0, StoredMat3::Zero());

@@ -286,6 +286,42 @@ TEST_CASE("MLS keeps mass, momentum and angular momentum through a transfer like
     }
 }
 
+namespace {
+
+/// cloud(seed) with a second object: object 1 every third particle; or, with `one_object`,
+/// object 0 alone, in cell order (batches of one object: the model set once per batch).
+Particles two_object_cloud(unsigned seed, bool one_object) {
+  Particles p = cloud(seed);
+  p.object_mass.push_back(2e-3);
+  p.object_volume0.push_back(2e-4);
+  if (one_object) {
+    Grid g(grid16(), false);
+    ParticleOrder ord;
+    sort_particles(p, Kernel::quadratic, g, ord);
+    reorder_as(ord, p);
+  } else {
+    for (std::size_t q = 0; q < p.size(); q += 3) p.object[q] = 1;
+  }
+  return p;
+}
+
+/// Scatters `ref`, whose stored stress holds object 0's, into `a`, and `p` with object 0's
+/// stress folded in by `model` into `b`; p's stored stress of object 0 is set to garbage
+/// first, which the fold must not read.
+void scatter_stored_and_folded(const Particles& ref, Particles p, const BatchModel& model,
+                               Transfer tr, Grid& a, Grid& b) {
+  for (std::size_t q = 0; q < p.size(); ++q)
+    if (p.object[q] == 0) p.stress[q].setConstant(1e30f);
+  ParticleOrder ord;
+  sort_particles(p, Kernel::quadratic, a, ord);
+  sort_particles(p, Kernel::quadratic, b, ord);
+  particles_to_grid(ref, ord, tr, Kernel::quadratic, 1e-3, a, TransferPath::simd);
+  const std::vector<BatchModel> fold{model, BatchModel{}};
+  particles_to_grid(p, ord, tr, Kernel::quadratic, 1e-3, b, TransferPath::simd, fold);
+}
+
+}  // namespace
+
 TEST_CASE(
     "SIMD particle-to-grid with each model's stress folded in equals the stress pass then the "
     "scatter",
@@ -294,8 +330,8 @@ TEST_CASE(
     WARN("no SIMD target on this CPU");
     return;
   }
-  // Two objects: 0 folded (each model in turn), 1 not (its stress read from p.stress); or, in
-  // cell order, object 0 alone (batches of one object: the model set once per batch).
+  // Two objects: 0 folded (each model in turn), 1 not (its stress read from p.stress); or
+  // object 0 alone (two_object_cloud).
   using K = BatchModel::Kind;
   std::vector<BatchModel> models;
   for (K kind : {K::fixed_corotated, K::snow, K::neo_hookean, K::water, K::sand}) {
@@ -313,17 +349,7 @@ TEST_CASE(
           INFO("target " << target << " transfer " << static_cast<int>(tr) << " one object "
                          << one_object << " kind " << static_cast<int>(model.kind));
           if (model.kind == K::snow) model.state = jp.data();
-          Particles p = cloud(17);
-          p.object_mass.push_back(2e-3);
-          p.object_volume0.push_back(2e-4);
-          if (one_object) {
-            Grid g(grid16(), false);
-            ParticleOrder ord;
-            sort_particles(p, Kernel::quadratic, g, ord);
-            reorder_as(ord, p);
-          } else {
-            for (std::size_t q = 0; q < p.size(); q += 3) p.object[q] = 1;
-          }
+          const Particles p = two_object_cloud(17, one_object);
           // Reference: object 0's stress from the separate SIMD stress pass, stored, then
           // scattered.
           Particles ref = p;
@@ -334,16 +360,8 @@ TEST_CASE(
               simd::stress(one, std::span<const StoredMat3>(&p.F[q], 1), p.object_volume0[0],
                            std::span<StoredMat3>(&ref.stress[q], 1));
             }
-          Particles folded = p;  // object 0's stored stress is garbage: the fold must not read it
-          for (std::size_t q = 0; q < p.size(); ++q)
-            if (p.object[q] == 0) folded.stress[q].setConstant(1e30f);
           Grid a(grid16(), false), b(grid16(), false);
-          ParticleOrder ord;
-          sort_particles(p, Kernel::quadratic, a, ord);
-          sort_particles(p, Kernel::quadratic, b, ord);
-          particles_to_grid(ref, ord, tr, Kernel::quadratic, 1e-3, a, TransferPath::simd);
-          const std::vector<BatchModel> fold{model, BatchModel{}};
-          particles_to_grid(folded, ord, tr, Kernel::quadratic, 1e-3, b, TransferPath::simd, fold);
+          scatter_stored_and_folded(ref, p, model, tr, a, b);
           CHECK(a.mass == b.mass);
           CHECK(a.velocity == b.velocity);  // bit-identical: the same float stress, the same sums
         }
@@ -367,27 +385,14 @@ TEST_CASE(
   simd::for_each_target([&](const char* target) {
     for (bool one_object : {false, true}) {
       INFO("target " << target << " one object " << one_object);
-      Particles p = cloud(23);
-      p.object_mass.push_back(2e-3);
-      p.object_volume0.push_back(2e-4);
-      if (!one_object)
-        for (std::size_t q = 0; q < p.size(); q += 3) p.object[q] = 1;
+      const Particles p = two_object_cloud(23, one_object);
       Particles ref = p;
       for (std::size_t q = 0; q < p.size(); ++q)
         if (p.object[q] == 0)
           group.compute_stress(std::span<const StoredMat3>(&p.F[q], 1), p.object_volume0[0],
                                std::span<StoredMat3>(&ref.stress[q], 1));
-      Particles folded = p;
-      for (std::size_t q = 0; q < p.size(); ++q)
-        if (p.object[q] == 0) folded.stress[q].setConstant(1e30f);
       Grid a(grid16(), false), b(grid16(), false);
-      ParticleOrder ord;
-      sort_particles(p, Kernel::quadratic, a, ord);
-      sort_particles(p, Kernel::quadratic, b, ord);
-      particles_to_grid(ref, ord, Transfer::apic, Kernel::quadratic, 1e-3, a, TransferPath::simd);
-      const std::vector<BatchModel> fold{own, BatchModel{}};
-      particles_to_grid(folded, ord, Transfer::apic, Kernel::quadratic, 1e-3, b, TransferPath::simd,
-                        fold);
+      scatter_stored_and_folded(ref, p, own, Transfer::apic, a, b);
       CHECK(a.mass == b.mass);
       // In double storage the lanes see F rounded to float: equal to that rounding only.
       if constexpr (std::is_same_v<StoredReal, float>) CHECK(a.velocity == b.velocity);

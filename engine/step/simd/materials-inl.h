@@ -16,6 +16,7 @@
 #include <hwy/highway.h>
 
 #include <cmath>
+#include <cstdint>
 
 #include "engine/step/simd/corotated-inl.h"
 #include "materials/material.h"
@@ -93,6 +94,17 @@ void symmetric_eigen(D d, V a00, V a11, V a22, V a01, V a02, V a12, V l[3], V v[
     rotate(a11, a22, a12, a01, a02, 1, 2);
   }
   l[0] = a00, l[1] = a11, l[2] = a22;
+}
+
+/// The lanes set in `m` among the first `count`, as bits (lane l: bit l).
+template <class D>
+std::uint64_t mask_bits(D d, hn::Mask<D> m, std::size_t count) {
+  if (hn::AllFalse(d, m)) return 0;
+  alignas(8) std::uint8_t bits[8] = {};
+  hn::StoreMaskBits(d, m, bits);
+  std::uint64_t out = 0;
+  for (int b = 0; b < 8; ++b) out |= std::uint64_t{bits[b]} << (8 * b);
+  return count >= 64 ? out : out & ((std::uint64_t{1} << count) - 1);
 }
 
 /// det F, F column-major (f[3 c + r] = F(r, c)).

@@ -42,17 +42,6 @@ void load_lanes(const StoredMat3* F, std::size_t count, VF f[9]) {
   for (int e = 0; e < 9; ++e) f[e] = hn::Load(d, in[e]);
 }
 
-/// The lanes set in `m` among the first `count`, as bits.
-std::uint64_t lane_bits(hn::Mask<DF> m, std::size_t count) {
-  const DF d;
-  if (hn::AllFalse(d, m)) return 0;
-  alignas(8) std::uint8_t bits[8] = {};
-  hn::StoreMaskBits(d, m, bits);
-  std::uint64_t out = 0;
-  for (int b = 0; b < 8; ++b) out |= std::uint64_t{bits[b]} << (8 * b);
-  return count >= 64 ? out : out & ((std::uint64_t{1} << count) - 1);
-}
-
 /// -V0 tau of `model` over particles [0, count), count <= kLanes, of plastic state `state`
 /// (null: none). Returns the fallbacks.
 std::size_t stress_batch(const BatchModel& model, const StoredMat3* F, const Real* state,
@@ -74,7 +63,7 @@ std::size_t stress_batch(const BatchModel& model, const StoredMat3* F, const Rea
     StoredReal* o = out[l].data();
     for (int e = 0; e < 9; ++e) o[e] = static_cast<StoredReal>(res[e][l]);
   }
-  const std::uint64_t redo = lane_bits(bad, count);
+  const std::uint64_t redo = lanes::mask_bits(d, bad, count);
   for (std::size_t l = 0; l < count; ++l)
     if (redo >> l & 1)
       out[l] = to_stored(-volume0 * kirchhoff(model, to_real(F[l]), state ? state[l] : 1));
@@ -103,7 +92,8 @@ std::size_t project_batch(const BatchModel& model, StoredMat3* F, Real* state, s
   }
   hn::Store(delta, d, st);
   for (int e = 0; e < 9; ++e) hn::Store(df[e], d, res[e]);
-  const std::uint64_t moved = lane_bits(changed, count), redo = lane_bits(bad, count);
+  const std::uint64_t moved = lanes::mask_bits(d, changed, count),
+                      redo = lanes::mask_bits(d, bad, count);
   for (std::size_t l = 0; l < count; ++l) {
     if (redo >> l & 1) {
       project_scalar(model, F[l], state[l]);
@@ -168,13 +158,27 @@ std::size_t stress(const BatchModel& model, std::span<const StoredMat3> F, Real 
   return HWY_DYNAMIC_DISPATCH(StressImpl)(model, F.data(), F.size(), volume0, out.data());
 }
 
+namespace {
+
+/// Snow's plasticity as `model` describes it (its hardening and clamp).
+materials::SnowPlasticity snow_plasticity(const BatchModel& model) {
+  materials::SnowPlasticity plastic;
+  plastic.critical_compression = model.critical_compression;
+  plastic.critical_stretch = model.critical_stretch;
+  plastic.hardening = model.hardening;
+  plastic.min_Jp = model.min_Jp;
+  return plastic;
+}
+
+}  // namespace
+
 Mat3 kirchhoff(const BatchModel& model, const Mat3& F, Real state) {
   using K = BatchModel::Kind;
   switch (model.kind) {
     case K::fixed_corotated:
       return materials::FixedCorotated{model.mu, model.lambda}.kirchhoff(F);
     case K::snow: {
-      const Real h = std::exp(model.hardening * (1 - state));
+      const Real h = snow_plasticity(model).hardening_factor(state);
       return materials::FixedCorotated{model.mu * h, model.lambda * h}.kirchhoff(F);
     }
     case K::neo_hookean:
@@ -201,13 +205,8 @@ std::size_t project(const BatchModel& model, std::span<StoredMat3> F, std::span<
 
 void project_scalar(const BatchModel& model, StoredMat3& F, Real& state) {
   if (model.kind == BatchModel::Kind::snow) {
-    materials::SnowPlasticity plastic;
-    plastic.critical_compression = model.critical_compression;
-    plastic.critical_stretch = model.critical_stretch;
-    plastic.hardening = model.hardening;
-    plastic.min_Jp = model.min_Jp;
     Mat3 Fe = to_real(F);
-    if (plastic.project(Fe, state)) F = to_stored(Fe);
+    if (snow_plasticity(model).project(Fe, state)) F = to_stored(Fe);
     return;
   }
   if (model.kind == BatchModel::Kind::sand)

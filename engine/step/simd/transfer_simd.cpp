@@ -279,11 +279,7 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
       redo = hn::Or(redo, hn::And(lane, m));
     }
     for (int e = 0; e < 9; ++e) hn::Store(tau[e], d, sb.tau[e]);
-    if (!hn::AllFalse(d, redo)) {
-      alignas(8) std::uint8_t bits[8] = {};
-      hn::StoreMaskBits(d, redo, bits);
-      for (int b = 0; b < 8; ++b) bad |= std::uint64_t{bits[b]} << (8 * b);
-    }
+    bad = lanes::mask_bits(d, redo, count);
   }
   const bool groups = present >> static_cast<int>(BatchModel::Kind::group) & 1;
   if (uniform && present && bad == 0 && !groups) return;  // every lane computed
