@@ -34,6 +34,9 @@ namespace hn = hwy::HWY_NAMESPACE;
 /// Per-lane parameters of a stress kernel: what lane_params gives for each kind.
 constexpr int kParams = 4;
 
+/// The parameter that holds the particle's plastic state (snow's Jp).
+constexpr int kStateParam = 3;
+
 /// The kParams per-lane values of `m` for one particle whose plastic state is `state` (snow's
 /// Jp; unused by the others): corotated 2 mu, lambda; snow 2 mu0, lambda0, xi, Jp;
 /// Neo-Hookean mu, lambda; water K, gamma; sand mu, lambda.
@@ -43,7 +46,7 @@ inline void lane_params(const BatchModel& m, Real state, float out[kParams]) {
   out[0] = static_cast<float>(m.kind == K::water ? m.bulk_modulus : (twice ? 2 : 1) * m.mu);
   out[1] = static_cast<float>(m.kind == K::water ? m.gamma : m.lambda);
   out[2] = static_cast<float>(m.hardening);
-  out[3] = static_cast<float>(state);
+  out[kStateParam] = static_cast<float>(state);
 }
 
 /// The eigen-decomposition of the symmetric matrix with entries a00 .. a12, per lane: its
@@ -193,7 +196,7 @@ hn::Mask<D> neg_v0_tau(BatchModel::Kind kind, D d, const V f[9], const V p[kPara
       return corotated::neg_v0_tau(d, f, p[0], p[1], neg_v0, out);
     case K::snow: {
       // Stomakhin et al. 2013, eq. 3: mu, lambda scaled by exp(xi (1 - Jp)).
-      const V h = hn::Exp(d, hn::Mul(p[2], hn::Sub(hn::Set(d, 1.0f), p[3])));
+      const V h = hn::Exp(d, hn::Mul(p[2], hn::Sub(hn::Set(d, 1.0f), p[kStateParam])));
       return corotated::neg_v0_tau(d, f, hn::Mul(p[0], h), hn::Mul(p[1], h), neg_v0, out);
     }
     case K::neo_hookean:

@@ -235,7 +235,8 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
     for (int k = 0; k < lanes::kParams; ++k) hn::Store(hn::Set(d, v[k]), d, prm[k]);
     if (one->state) {  // snow's Jp, consecutive too
       const Real* s = one->state + (ord.order[b0] - one->first);
-      for (std::size_t l = 0; l < kLanes; ++l) prm[3][l] = static_cast<float>(s[l]);
+      for (std::size_t l = 0; l < kLanes; ++l)
+        prm[lanes::kStateParam][l] = static_cast<float>(s[l]);
     }
     hn::Store(hn::Set(d, static_cast<float>(-p.object_volume0[p.object[ord.order[b0]]])), d, nv0);
     present = 1u << static_cast<int>(one->kind);
