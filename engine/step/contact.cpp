@@ -4,6 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <unordered_map>
+
+#include "engine/core/hash.h"
 
 namespace mpm {
 
@@ -39,14 +43,19 @@ struct ParticleRadius {
 };
 
 /// Appends a contact for every particle that `hit(x, reach, out)` finds within `reach` of one
-/// wall (its radius bound plus a cell), in particle order whatever the thread count (each
-/// thread scans one contiguous chunk, and the chunks are joined in order).
+/// wall (its radius bound plus `travel`, the farthest it can close on the wall in a substep),
+/// in particle order whatever the thread count (each thread scans one contiguous chunk, and
+/// the chunks are joined in order).
 template <class Hit>
-void find_contacts(const ParticleRadius& radius, Real cell, Boundary b, Real friction,
+void find_contacts(const ParticleRadius& radius, Real travel, Boundary b, Real friction,
                    std::uint32_t wall, Hit&& hit, ContactState& st) {
   const Particles& p = radius.p;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
+  if (n == 0) return;
   const int threads = n >= kParallelMinItems ? omp_get_max_threads() : 1;
+  const Real farthest =
+      kRestDepthCap * *std::max_element(radius.half_spacing.begin(), radius.half_spacing.end()) +
+      travel;
   std::vector<std::vector<std::pair<std::uint32_t, WallHit>>> found(threads);
 #pragma omp parallel num_threads(threads)
   {
@@ -54,7 +63,7 @@ void find_contacts(const ParticleRadius& radius, Real cell, Boundary b, Real fri
 #pragma omp for schedule(static)
     for (std::ptrdiff_t q = 0; q < n; ++q) {
       WallHit h;
-      if (hit(p.x[q], radius.most(q) + cell, h))
+      if (hit(p.x[q], farthest, h) && h.distance < radius.most(q) + travel)
         mine.emplace_back(static_cast<std::uint32_t>(q), h);
     }
   }
@@ -115,6 +124,34 @@ void ghost_weights(const Stencil<KernelTraits<K>::kNodes>& s, const Vec3& point,
   // Rows down to N cells behind the wall: beyond, a ghost reaches no node of the stencil.
   const int rows = static_cast<int>(std::ceil(N * g.h.maxCoeff() / spacing));
   const Vec3 inv_d = KernelTraits<K>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
+  int axis;
+  if (n.cwiseAbs().maxCoeff(&axis) == 1) {
+    // A wall across a grid axis: the ghosts share the contact point's other two coordinates,
+    // so each weight is the point's weights across the wall times a sum over the rows along it.
+    Real along[N] = {};
+    const Real side = n[axis], h = g.h[axis], inv_h = g.inv_h[axis];
+    for (int r = 0; r < rows; ++r) {
+      const Real xg = point[axis] - (r + Real(0.5)) * spacing * side;
+      const Real fx = (xg - g.origin[axis]) * inv_h;
+      const int base = KernelTraits<K>::base(fx);
+      Real w[N], dw[N];
+      KernelTraits<K>::weights(fx - base, w, dw);
+      for (int k = 0; k < N; ++k) {
+        const int rel = base + k - s.base[axis];
+        if (rel < 0 || rel >= N) continue;
+        const Real to_node = g.origin[axis] + (base + k) * h - xg;
+        along[rel] += spacing * side * (mls ? w[k] * inv_d[axis] * to_node : dw[k] * inv_h);
+      }
+    }
+    const int a = (axis + 1) % 3, b = (axis + 2) % 3;
+    for (int i = 0; i < N; ++i)
+      for (int j = 0; j < N; ++j)
+        for (int k = 0; k < N; ++k) {
+          const int at[3] = {i, j, k};
+          weights[(i * N + j) * N + k] = along[at[axis]] * s.w[a][at[a]] * s.w[b][at[b]];
+        }
+    return;
+  }
   for (int r = 0; r < rows; ++r) {
     const Vec3 xg = point - (r + Real(0.5)) * spacing * n;
     const auto sg = make_stencil<K>(xg, g.origin, g.inv_h);
@@ -223,6 +260,17 @@ void compact_nodes(const Grid& g, const std::vector<std::size_t>& storage_index,
   }
 }
 
+/// The storage index of grid node n, or kNoNode if it is outside the grid, unallocated or
+/// massless.
+inline std::size_t node_storage(const Grid& g, const Vec3i& n) {
+  if ((n.array() < 0).any() || (n.array() >= g.nodes.array()).any() ||
+      g.slot[g.page(n.x() >> Grid::kBlockBits, n.y() >> Grid::kBlockBits,
+                    n.z() >> Grid::kBlockBits)] < 0)
+    return kNoNode;
+  const std::size_t at = g.node_index(n.x(), n.y(), n.z());
+  return g.mass[at] > 0 ? at : kNoNode;
+}
+
 /// The contacts' stencils (weights, grid storage indices), then compact node indices in
 /// first-touch order with each node's velocity, inverse mass and key.
 template <int N>
@@ -233,6 +281,8 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
   std::vector<std::size_t> storage_index(nc * S);
   st.stencil = S;
   st.weights.resize(nc * S);
+  std::vector<Real> spacing(p.object_volume0.size());
+  for (std::size_t o = 0; o < spacing.size(); ++o) spacing[o] = std::cbrt(p.object_volume0[o]);
   // The stencil of the contact point, on the wall: the velocity there is the contact's, so a
   // ball rolls on the wall, not on its particles' centres; its impulse enters with the ghost
   // weights. Nodes without mass take no part, and the weights of the others are scaled to
@@ -242,27 +292,33 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
     dispatch_kernel(kernel, [&]<Kernel K>() {
       if constexpr (KernelTraits<K>::kNodes == N) {
         const auto s = make_stencil<K>(st.point[c], g.origin, g.inv_h);
-        Real ghost[S];
-        ghost_weights<K>(s, st.point[c], st.normal[c], std::cbrt(p.volume0(st.particle[c])),
-                         st.mls_quadrature, g, ghost);
+        std::size_t* at = &storage_index[c * S];
+        Real* w = &st.weights[c * S];
+        // A particle still a gap away whose every node moves away from the wall, or closes
+        // slower than the gap within the substep, cannot act (the interpolated velocity is a
+        // mean of the nodes'): keep_acting_contacts would drop it, so its weights are not
+        // worth finding.
+        Real closing = 0;
         int t = 0;
-        Real sum = 0;
         for (int i = 0; i < N; ++i)
           for (int j = 0; j < N; ++j)
             for (int k = 0; k < N; ++k, ++t) {
-              const Vec3i n = s.base + Vec3i(i, j, k);
-              std::size_t at = kNoNode;
-              if ((n.array() >= 0).all() && (n.array() < g.nodes.array()).all() &&
-                  g.slot[g.page(n.x() >> Grid::kBlockBits, n.y() >> Grid::kBlockBits,
-                                n.z() >> Grid::kBlockBits)] >= 0) {
-                at = g.node_index(n.x(), n.y(), n.z());
-                if (!(g.mass[at] > 0)) at = kNoNode;
-              }
-              storage_index[c * S + t] = at;
-              st.weights[c * S + t] = at == kNoNode ? 0 : std::max(ghost[t], Real(0));
-              sum += st.weights[c * S + t];
+              at[t] = node_storage(g, s.base + Vec3i(i, j, k));
+              if (at[t] != kNoNode)
+                closing = std::max(closing, -(g.velocity[at[t]] - st.wall_velocity[c]).dot(st.normal[c]));
             }
-        for (t = 0; t < S; ++t) st.weights[c * S + t] = sum > 0 ? st.weights[c * S + t] / sum : 0;
+        if (st.gap[c] > 0 && closing * dt <= st.gap[c]) {
+          std::fill(w, w + S, Real(0));
+          return;
+        }
+        ghost_weights<K>(s, st.point[c], st.normal[c], spacing[p.object[st.particle[c]]],
+                         st.mls_quadrature, g, w);
+        Real sum = 0;
+        for (t = 0; t < S; ++t) {
+          w[t] = at[t] == kNoNode ? 0 : std::max(w[t], Real(0));
+          sum += w[t];
+        }
+        for (t = 0; t < S; ++t) w[t] = sum > 0 ? w[t] / sum : 0;
       }
     });
   }
@@ -293,8 +349,106 @@ void row_sum_inverses(ContactState& st, bool par) {
   }
 }
 
+/// The particles each merged contact stands for (merge_shared_stencils): the ids of merged
+/// contact g's are id[first[g]] to id[first[g + 1] - 1].
+struct Members {
+  std::vector<std::uint32_t> first;  ///< Offsets into id, one per merged contact and one more.
+  std::vector<std::uint32_t> id;     ///< Particle ids.
+};
+
+/// Merges the contacts of `st` that share a patch and whose stencils reach the same nodes
+/// (their contact points lie in one stencil base cell), touching or closing alike, into one
+/// contact that stands for all of them (st.count): its weights are their weights' mean, its
+/// normal and wall velocity their means, its gap their least. The grid resolves the traction
+/// only to its nodes, and W M^-1 W^T is singular where more contacts than nodes share a
+/// stencil, so the merged set poses the same condition on the node velocities as the
+/// particles' own (at uniform pressure their impulses are equal, and the mean weights put the
+/// same force on each node), with one unknown per stencil and patch: a body squashed flat on
+/// a floor, its particles by the hundred per cell, costs as much as one that rests on it.
+/// Contacts keep their first-found order. Returns each merged contact's particles.
+Members merge_shared_stencils(ContactState& st) {
+  const int S = st.stencil;
+  const std::size_t nc = st.size();
+  // A stencil is named by its first node with mass and that node's place in it: contacts
+  // with one stencil base reach the same nodes, and different bases give different names.
+  struct Key {
+    std::uint64_t node;  ///< node_key of the stencil's first node with mass.
+    std::uint32_t place, patch;
+    bool touching;
+    bool operator==(const Key&) const = default;
+  };
+  struct Hash {
+    std::size_t operator()(const Key& k) const {
+      return splitmix64(k.node ^ splitmix64((std::uint64_t{k.patch} << 32 | k.place) * 2 +
+                                            k.touching));
+    }
+  };
+  std::unordered_map<Key, std::uint32_t, Hash> groups;
+  groups.reserve(nc);
+  std::vector<std::uint32_t> group(nc), leader;
+  for (std::size_t c = 0; c < nc; ++c) {
+    std::uint32_t t = 0;
+    while (t + 1 < static_cast<std::uint32_t>(S) && st.nodes[c * S + t] == 0) ++t;
+    const Key k{st.node_key[st.nodes[c * S + t]], t, st.patch[c], st.gap[c] <= 0};
+    const auto [it, added] = groups.emplace(k, static_cast<std::uint32_t>(leader.size()));
+    if (added) leader.push_back(static_cast<std::uint32_t>(c));
+    group[c] = it->second;
+  }
+  const std::size_t ng = leader.size();
+  Members m;
+  m.first.assign(ng + 1, 0);
+  for (std::size_t c = 0; c < nc; ++c) ++m.first[group[c] + 1];
+  for (std::size_t g = 0; g < ng; ++g) m.first[g + 1] += m.first[g];
+  m.id.resize(nc);
+  std::vector<std::uint32_t> fill(m.first.begin(), m.first.end() - 1);
+  for (std::size_t c = 0; c < nc; ++c) m.id[fill[group[c]]++] = st.id[c];
+  if (ng == nc) {
+    st.count.assign(nc, 1);
+    return m;
+  }
+  std::vector<Vec3> normal(ng, Vec3::Zero()), wall_velocity(ng, Vec3::Zero());
+  std::vector<Real> gap(ng, std::numeric_limits<Real>::max()), weights(ng * S, 0);
+  st.count.assign(ng, 0);
+  for (std::size_t c = 0; c < nc; ++c) {
+    const std::uint32_t g = group[c];
+    normal[g] += st.normal[c];
+    wall_velocity[g] += st.wall_velocity[c];
+    gap[g] = std::min(gap[g], st.gap[c]);
+    st.count[g] += 1;
+    for (int t = 0; t < S; ++t) weights[g * S + t] += st.weights[c * S + t];
+  }
+  std::vector<std::uint32_t> nodes(ng * S);
+  for (std::size_t g = 0; g < ng; ++g) {
+    const std::size_t c = leader[g];
+    const Real n = st.count[g];
+    const Real length = normal[g].norm();
+    normal[g] = length > 0 ? Vec3(normal[g] / length) : st.normal[c];
+    wall_velocity[g] /= n;
+    for (int t = 0; t < S; ++t) {
+      weights[g * S + t] /= n;
+      nodes[g * S + t] = st.nodes[c * S + t];
+    }
+    st.particle[g] = st.particle[c];
+    st.id[g] = st.id[c];
+    st.point[g] = st.point[c];
+    st.boundary[g] = st.boundary[c];
+    st.friction[g] = st.friction[c];
+    st.patch[g] = st.patch[c];
+  }
+  for (auto* v : {&st.particle, &st.id, &st.patch}) v->resize(ng);
+  st.point.resize(ng);
+  st.boundary.resize(ng);
+  st.friction.resize(ng);
+  st.normal = std::move(normal);
+  st.wall_velocity = std::move(wall_velocity);
+  st.gap = std::move(gap);
+  st.weights = std::move(weights);
+  st.nodes = std::move(nodes);
+  return m;
+}
+
 /// Per patch (wall and object): the friction capacity `load`, the sum of mu times the normal
-/// impulses `ln` of its rubbing contacts, and their number `rubbers`.
+/// impulses `ln` of its rubbing contacts, and the number of particles they stand for `rubbers`.
 void patch_loads(const ContactState& st, const std::vector<Real>& ln, std::vector<Real>& load,
                  std::vector<Real>& rubbers) {
   std::fill(load.begin(), load.end(), 0);
@@ -302,7 +456,7 @@ void patch_loads(const ContactState& st, const std::vector<Real>& ln, std::vecto
   for (std::size_t c = 0; c < st.size(); ++c)
     if (rubs(st, c) && !held(st, c)) {
       load[st.patch[c]] += st.friction[c] * std::max(ln[c], Real(0));
-      rubbers[st.patch[c]] += 1;
+      rubbers[st.patch[c]] += st.count[c];
     }
 }
 
@@ -335,7 +489,7 @@ Real scatter_chunk(ContactState& st, const std::vector<Real>& ln, const std::vec
     if (hold) work += ask[c].dot(st.wall_velocity[c]);
     const bool rub = !hold && rubs(st, c);
     const Vec3 push = dn * st.normal[c] + (hold ? ask[c] : Vec3::Zero());
-    const Real share = rub ? load[st.patch[c]] / rubbers[st.patch[c]] : 0;
+    const Real share = rub ? st.count[c] * load[st.patch[c]] / rubbers[st.patch[c]] : 0;
     for (int t = 0; t < S; ++t) {
       NodeSums& n = sums[st.nodes[c * S + t]];
       const Real w = st.weights[c * S + t];
@@ -348,15 +502,17 @@ Real scatter_chunk(ContactState& st, const std::vector<Real>& ln, const std::vec
   return work;
 }
 
-/// Starts each contact of `st` from its particle's normal impulse on the same wall in the last
-/// substep (`memory`), applied to the node velocities in contact order. Returns the moving
-/// walls' work of those impulses.
-Real warm_start(Real dt, const ContactMemory& memory, ContactState& st) {
+/// Starts each contact of `st` from its particles' (`members`) normal impulses on the same wall
+/// in the last substep (`memory`), applied to the node velocities in contact order. Returns the
+/// moving walls' work of those impulses.
+Real warm_start(Real dt, const ContactMemory& memory, const Members& members, ContactState& st) {
   const int S = st.stencil;
   Real work = 0;
   st.normal_impulse.assign(st.size(), 0);
   for (std::size_t c = 0; c < st.size(); ++c) {
-    const Real start = memory.start(st.id[c], st.patch[c], dt);
+    Real start = 0;
+    for (std::uint32_t e = members.first[c]; e < members.first[c + 1]; ++e)
+      start += memory.start(members.id[e], st.patch[c], dt);
     if (start == 0) continue;
     st.normal_impulse[c] = start;
     work += start * st.normal[c].dot(st.wall_velocity[c]);
@@ -386,8 +542,9 @@ struct NodeFriction {
       if (!held(st, c) && rubs(st, c))
         for (int t = 0; t < S; ++t) {
           const std::uint32_t i = st.nodes[c * S + t];
-          wall_v[i] += st.weights[c * S + t] * st.wall_velocity[c];
-          rubbing[i] += st.weights[c * S + t];
+          const Real w = st.count[c] * st.weights[c * S + t];
+          wall_v[i] += w * st.wall_velocity[c];
+          rubbing[i] += w;
         }
   }
 
@@ -427,6 +584,7 @@ struct NodeFriction {
 
 Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
                    ContactMemory& memory) {
+  const Members members = merge_shared_stencils(st);
   const int S = st.stencil;
   const std::size_t nc = st.size();
   const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(nc);
@@ -445,7 +603,7 @@ Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
       u[c] = sum;
     }
   };
-  Real work = warm_start(dt, memory, st);
+  Real work = warm_start(dt, memory, members, st);
   interpolate();
   row_sum_inverses(st, par);
   // Friction is Coulomb's law on the traction, a field over the contact. A particle's own
@@ -491,7 +649,15 @@ Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
     if (it == 0) first_change = change;
     if (change <= settings.tolerance * settings.tolerance * first_change) break;
   }
-  memory.keep(st.id, st.patch, st.normal_impulse, dt);
+  // Each particle keeps an equal share of its merged contact's impulse.
+  std::vector<std::uint32_t> patch(members.id.size());
+  std::vector<Real> impulse(members.id.size());
+  for (std::size_t c = 0; c < nc; ++c)
+    for (std::uint32_t e = members.first[c]; e < members.first[c + 1]; ++e) {
+      patch[e] = st.patch[c];
+      impulse[e] = st.normal_impulse[c] / (members.first[c + 1] - members.first[c]);
+    }
+  memory.keep(members.id, patch, impulse, dt);
   return work;
 }
 
@@ -528,6 +694,7 @@ void ContactState::clear() {
   boundary.clear();
   friction.clear();
   patch.clear();
+  count.clear();
   normal_impulse.clear();
   inv_k.clear();
   nodes.clear();
@@ -552,14 +719,24 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
   std::vector<Real> radius(p.object_volume0.size());
   for (std::size_t o = 0; o < radius.size(); ++o)
     radius[o] = Real(0.5) * std::cbrt(p.object_volume0[o]);
+  // A contact acts if it is touching or closes its gap within the substep at the velocity
+  // interpolated from its nodes (keep_acting_contacts), a mean of node velocities: no farther
+  // than dt times the fastest node plus the wall's speed, and never a cell.
   const Real cell = g.h.maxCoeff();
+  const std::ptrdiff_t slots = static_cast<std::ptrdiff_t>(g.mass.size());
+  Real fastest = 0;
+#pragma omp parallel for schedule(static) reduction(max : fastest) if (slots >= kParallelMinItems)
+  for (std::ptrdiff_t i = 0; i < slots; ++i)
+    if (g.mass[i] > 0) fastest = std::max(fastest, g.velocity[i].squaredNorm());
+  fastest = std::sqrt(fastest);
+  const auto travel = [&](Real wall_speed) { return std::min(cell, dt * (fastest + wall_speed)); };
   const ParticleRadius particle_radius{p, radius, st.rest_depth};
   std::uint32_t wall = 0;
   for (const WallPlane& w : planes) {
     const Vec3 point = w.point + w.offset(time);
     const Vec3 velocity = w.velocity_at(time + dt);
     find_contacts(
-        particle_radius, cell, w.boundary, w.friction, wall++,
+        particle_radius, travel(velocity.norm()), w.boundary, w.friction, wall++,
         [&](const Vec3& x, Real reach, WallHit& h) {
           const Real d = (x - point).dot(w.normal);
           if (d >= reach) return false;
@@ -569,6 +746,7 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
         st);
   }
   for (const Collider& c : colliders) {
+    // A collider's speed varies over it: its particles' reach stays a cell.
     const ColliderPose now = c.pose(time), next = c.pose(time + dt);
     const Vec3 margin = Vec3::Constant(
         radius.empty() ? 0

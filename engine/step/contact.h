@@ -91,6 +91,7 @@ struct ContactState {
   std::vector<Boundary> boundary;       ///< The wall's condition.
   std::vector<Real> friction;           ///< The wall's Coulomb coefficient.
   std::vector<std::uint32_t> patch;     ///< Wall index times objects plus object index.
+  std::vector<Real> count;  ///< Particles each contact stands for (set by solve_contact).
   std::size_t patches = 0;              ///< Walls times objects.
   std::vector<Real> normal_impulse;     ///< Accumulated normal impulse on the grid, N s.
   std::vector<Real> inv_k;              ///< 1 / (row sum of W M^-1 W^T), kg.
