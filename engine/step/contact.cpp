@@ -173,6 +173,28 @@ void ghost_weights(const Stencil<KernelTraits<K>::kNodes>& s, const Vec3& point,
 /// A stencil node that takes no part in a contact (outside the grid, unallocated or massless).
 constexpr std::size_t kNoNode = ~std::size_t{0};
 
+/// Copies contact `from`'s per-contact fields (not its stencil) over contact `to`'s.
+void copy_contact(ContactState& st, std::size_t from, std::size_t to) {
+  st.particle[to] = st.particle[from];
+  st.id[to] = st.id[from];
+  st.point[to] = st.point[from];
+  st.normal[to] = st.normal[from];
+  st.wall_velocity[to] = st.wall_velocity[from];
+  st.gap[to] = st.gap[from];
+  st.boundary[to] = st.boundary[from];
+  st.friction[to] = st.friction[from];
+  st.patch[to] = st.patch[from];
+}
+
+/// Keeps the first `n` contacts' per-contact fields (not their stencils).
+void resize_contacts(ContactState& st, std::size_t n) {
+  for (auto* v : {&st.particle, &st.id, &st.patch}) v->resize(n);
+  for (auto* v : {&st.point, &st.normal, &st.wall_velocity}) v->resize(n);
+  st.gap.resize(n);
+  st.boundary.resize(n);
+  st.friction.resize(n);
+}
+
 /// Keeps only the contacts that act (st's arrays, the stencil weights and the grid storage
 /// indices `storage_index` of each contact's S nodes, kNoNode for none, compacted in order):
 /// touching, or closing their gap within the substep of `dt` at the velocity interpolated now
@@ -194,26 +216,14 @@ void keep_acting_contacts(Real dt, const Grid& g, ContactState& st,
     if (sum == 0) continue;
     if (!(st.gap[c] <= 0 || (u - st.wall_velocity[c]).dot(st.normal[c]) < -st.gap[c] / dt))
       continue;
-    st.particle[kept] = st.particle[c];
-    st.id[kept] = st.id[c];
-    st.point[kept] = st.point[c];
-    st.normal[kept] = st.normal[c];
-    st.wall_velocity[kept] = st.wall_velocity[c];
-    st.gap[kept] = st.gap[c];
-    st.boundary[kept] = st.boundary[c];
-    st.friction[kept] = st.friction[c];
-    st.patch[kept] = st.patch[c];
+    copy_contact(st, c, kept);
     for (int t = 0; t < S; ++t) {
       st.weights[kept * S + t] = st.weights[c * S + t];
       storage_index[kept * S + t] = storage_index[c * S + t];
     }
     ++kept;
   }
-  for (auto* v : {&st.particle, &st.id, &st.patch}) v->resize(kept);
-  for (auto* v : {&st.point, &st.normal, &st.wall_velocity}) v->resize(kept);
-  st.gap.resize(kept);
-  st.boundary.resize(kept);
-  st.friction.resize(kept);
+  resize_contacts(st, kept);
   st.weights.resize(kept * S);
 }
 
@@ -283,10 +293,10 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
   st.weights.resize(nc * S);
   std::vector<Real> spacing(p.object_volume0.size());
   for (std::size_t o = 0; o < spacing.size(); ++o) spacing[o] = std::cbrt(p.object_volume0[o]);
-  // The stencil of the contact point, on the wall: the velocity there is the contact's, so a
-  // ball rolls on the wall, not on its particles' centres; its impulse enters with the ghost
-  // weights. Nodes without mass take no part, and the weights of the others are scaled to
-  // sum to one.
+    // The stencil of the contact point, on the wall: the velocity there is the contact's, so a
+    // ball rolls on the wall, not on its particles' centres; its impulse enters with the ghost
+    // weights. Nodes without mass take no part, and the weights of the others are scaled to
+    // sum to one.
 #pragma omp parallel for schedule(static) if (sn * S >= kParallelMinItems)
   for (std::ptrdiff_t c = 0; c < sn; ++c) {
     dispatch_kernel(kernel, [&]<Kernel K>() {
@@ -305,7 +315,8 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
             for (int k = 0; k < N; ++k, ++t) {
               at[t] = node_storage(g, s.base + Vec3i(i, j, k));
               if (at[t] != kNoNode)
-                closing = std::max(closing, -(g.velocity[at[t]] - st.wall_velocity[c]).dot(st.normal[c]));
+                closing =
+                    std::max(closing, -(g.velocity[at[t]] - st.wall_velocity[c]).dot(st.normal[c]));
             }
         if (st.gap[c] > 0 && closing * dt <= st.gap[c]) {
           std::fill(w, w + S, Real(0));
@@ -379,8 +390,8 @@ Members merge_shared_stencils(ContactState& st) {
   };
   struct Hash {
     std::size_t operator()(const Key& k) const {
-      return splitmix64(k.node ^ splitmix64((std::uint64_t{k.patch} << 32 | k.place) * 2 +
-                                            k.touching));
+      return splitmix64(k.node ^
+                        splitmix64((std::uint64_t{k.patch} << 32 | k.place) * 2 + k.touching));
     }
   };
   std::unordered_map<Key, std::uint32_t, Hash> groups;
@@ -428,17 +439,9 @@ Members merge_shared_stencils(ContactState& st) {
       weights[g * S + t] /= n;
       nodes[g * S + t] = st.nodes[c * S + t];
     }
-    st.particle[g] = st.particle[c];
-    st.id[g] = st.id[c];
-    st.point[g] = st.point[c];
-    st.boundary[g] = st.boundary[c];
-    st.friction[g] = st.friction[c];
-    st.patch[g] = st.patch[c];
+    copy_contact(st, c, g);
   }
-  for (auto* v : {&st.particle, &st.id, &st.patch}) v->resize(ng);
-  st.point.resize(ng);
-  st.boundary.resize(ng);
-  st.friction.resize(ng);
+  resize_contacts(st, ng);
   st.normal = std::move(normal);
   st.wall_velocity = std::move(wall_velocity);
   st.gap = std::move(gap);
