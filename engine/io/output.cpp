@@ -236,15 +236,10 @@ void read_rows(hid_t file, const char* name, std::vector<T>& v, std::size_t widt
 /// The contact impulses of `m` as three datasets (the ids with an entry, their patches and
 /// impulses) and the substep they were found in.
 static void write_contact_memory(hid_t file, const ContactMemory& m) {
-  std::vector<std::uint32_t> patch;
-  std::vector<double> impulse;
-  for (std::uint32_t i : m.ids) {
-    patch.push_back(m.patch[i]);
-    impulse.push_back(m.impulse[i]);
-  }
+  const std::vector<double> impulse(m.impulses.begin(), m.impulses.end());
   const hsize_t d[1] = {m.ids.size()};
   write_dataset(file, "contact_id", H5T_STD_U32LE, H5T_NATIVE_UINT32, 1, d, m.ids.data());
-  write_dataset(file, "contact_patch", H5T_STD_U32LE, H5T_NATIVE_UINT32, 1, d, patch.data());
+  write_dataset(file, "contact_patch", H5T_STD_U32LE, H5T_NATIVE_UINT32, 1, d, m.patches.data());
   write_dataset(file, "contact_impulse", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, 1, d, impulse.data());
   write_attribute(file, "contact_dt", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, static_cast<double>(m.dt));
 }

@@ -360,6 +360,34 @@ void row_sum_inverses(ContactState& st, bool par) {
   }
 }
 
+/// Reorders `v`, `stride` entries per contact: entry group c takes group order[c].
+template <class T>
+void permute(const std::vector<std::uint32_t>& order, int stride, std::vector<T>& v) {
+  std::vector<T> from(v);
+  for (std::size_t c = 0; c < order.size(); ++c)
+    std::copy_n(&from[order[c] * stride], stride, &v[c * stride]);
+}
+
+/// Puts the contacts of `st` in order of patch and particle id. The order they are found in
+/// depends on the particles' places in memory and, with ranks, on which rank holds them, and
+/// the solve's sums follow it: sorted, one and two ranks add the same impulses in the same
+/// order (with the warm start's memory kept per particle and wall, the pool at rest drifted
+/// apart between one and two ranks otherwise; docs/accuracy.md).
+void sort_contacts(ContactState& st) {
+  std::vector<std::uint32_t> order(st.size());
+  for (std::size_t c = 0; c < order.size(); ++c) order[c] = static_cast<std::uint32_t>(c);
+  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    return st.patch[a] != st.patch[b] ? st.patch[a] < st.patch[b] : st.id[a] < st.id[b];
+  });
+  for (auto* v : {&st.particle, &st.id, &st.patch}) permute(order, 1, *v);
+  for (auto* v : {&st.point, &st.normal, &st.wall_velocity}) permute(order, 1, *v);
+  permute(order, 1, st.gap);
+  permute(order, 1, st.boundary);
+  permute(order, 1, st.friction);
+  permute(order, st.stencil, st.nodes);
+  permute(order, st.stencil, st.weights);
+}
+
 /// The particles each merged contact stands for (merge_shared_stencils): the ids of merged
 /// contact g's are id[first[g]] to id[first[g + 1] - 1].
 struct Members {
@@ -587,6 +615,7 @@ struct NodeFriction {
 
 Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
                    ContactMemory& memory) {
+  sort_contacts(st);
   const Members members = merge_shared_stencils(st);
   const int S = st.stencil;
   const std::size_t nc = st.size();
@@ -664,25 +693,25 @@ Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
   return work;
 }
 
-Real ContactMemory::start(std::uint32_t id, std::uint32_t p, Real step) const {
-  if (id >= patch.size() || patch[id] != p || !(dt > 0)) return 0;
-  return impulse[id] * step / dt;  // the same force over the new substep
+Real ContactMemory::start(std::uint32_t id, std::uint32_t patch, Real step) const {
+  const auto it = by_key_.find(std::uint64_t{id} << 32 | patch);
+  if (it == by_key_.end() || !(dt > 0)) return 0;
+  return it->second * step / dt;  // the same force over the new substep
 }
 
 void ContactMemory::keep(const std::vector<std::uint32_t>& id,
-                         const std::vector<std::uint32_t>& patches,
-                         const std::vector<Real>& impulses, Real step) {
-  for (std::uint32_t i : ids) patch[i] = kNone;
+                         const std::vector<std::uint32_t>& patch, const std::vector<Real>& impulse,
+                         Real step) {
   ids.clear();
+  patches.clear();
+  impulses.clear();
+  by_key_.clear();
   for (std::size_t c = 0; c < id.size(); ++c) {
-    if (!(impulses[c] > 0)) continue;
-    if (id[c] >= patch.size()) {
-      patch.resize(id[c] + 1, kNone);
-      impulse.resize(id[c] + 1, 0);
-    }
-    patch[id[c]] = patches[c];
-    impulse[id[c]] = impulses[c];
+    if (!(impulse[c] > 0)) continue;
     ids.push_back(id[c]);
+    patches.push_back(patch[c]);
+    impulses.push_back(impulse[c]);
+    by_key_[std::uint64_t{id[c]} << 32 | patch[c]] = impulse[c];
   }
   dt = step;
 }

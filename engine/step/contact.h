@@ -35,6 +35,8 @@
 /// half the spacing leave a bumpy one: dips of up to half the spacing between particles, over
 /// which a ball rolling on its particles hops and loses energy (docs/accuracy.md).
 
+#include <cstdint>
+#include <unordered_map>
 #include <vector>
 
 #include "engine/core/particles.h"
@@ -51,25 +53,28 @@ namespace mpm {
 /// and the second row of a body sampled on a lattice (1.5 spacings deep), keep half the spacing.
 constexpr Real kRestDepthCap = 1.5;
 
-/// What the contact solve keeps between substeps: each particle's normal impulse on the wall
+/// What the contact solve keeps between substeps: each particle's normal impulse on each wall
 /// it touched, which the next substep's solve starts from (warm starting, as Box2D and Jolt
 /// Physics do; Catto 2005, "Iterative dynamics with temporal coherence", GDC). A body resting
 /// on a wall then starts each solve at its last answer, and the few iterations refine it
 /// instead of finding the whole weight again (docs/accuracy.md: without it, the pool at rest
 /// drifts by the part left unsolved in every substep).
 struct ContactMemory {
-  /// The patch value of "no contact".
-  static constexpr std::uint32_t kNone = ~std::uint32_t{0};
-  std::vector<std::uint32_t> patch;  ///< By particle id: the patch of its last contact, or kNone.
-  std::vector<Real> impulse;         ///< By particle id: its normal impulse there, N s.
-  std::vector<std::uint32_t> ids;    ///< The ids with an entry.
-  Real dt = 0;                       ///< The substep those impulses were found in, s.
+  std::vector<std::uint32_t> ids;      ///< Particle id of each kept impulse, in contact order.
+  std::vector<std::uint32_t> patches;  ///< Its patch (wall and object).
+  std::vector<Real> impulses;          ///< Its normal impulse there, N s.
+  Real dt = 0;                         ///< The substep those impulses were found in, s.
 
   /// The impulse to start contact `patch` of particle `id` from, for a substep of `dt`.
   Real start(std::uint32_t id, std::uint32_t patch, Real dt) const;
-  /// Replaces the entries by the `impulses` of the contacts of particles `id` on `patches`.
+  /// Replaces the entries by the `impulses` of the contacts of particles `id` on `patches`
+  /// (one per particle and patch: a particle in a corner, or on two walls that coincide, keeps
+  /// one for each wall).
   void keep(const std::vector<std::uint32_t>& id, const std::vector<std::uint32_t>& patches,
             const std::vector<Real>& impulses, Real dt);
+
+ private:
+  std::unordered_map<std::uint64_t, Real> by_key_;  // (id << 32 | patch) -> impulse
 };
 
 /// Settings of the contact solve.
@@ -121,7 +126,8 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
                    Kernel kernel, Real time, Real dt, const Particles& particles, const Grid& grid,
                    ContactState& state);
 
-/// Solves the walls' conditions at the contacts on `state`'s node velocities: sticky, the
+/// Solves the walls' conditions at the contacts on `state`'s node velocities (sorted by wall
+/// and particle id first, and those sharing a stencil and wall merged): sticky, the
 /// velocity relative to the wall is zero; slip and separate, the normal part may only point
 /// away, with Coulomb friction. Starts from the normal impulses in `memory` and keeps the new
 /// ones there. Returns the work (J) the moving walls did on the grid: the impulses times the
