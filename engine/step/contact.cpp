@@ -291,12 +291,13 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
   std::vector<std::size_t> storage_index(nc * S);
   st.stencil = S;
   st.weights.resize(nc * S);
+  // Each object's particle spacing, for the ghost rows.
   std::vector<Real> spacing(p.object_volume0.size());
   for (std::size_t o = 0; o < spacing.size(); ++o) spacing[o] = std::cbrt(p.object_volume0[o]);
-    // The stencil of the contact point, on the wall: the velocity there is the contact's, so a
-    // ball rolls on the wall, not on its particles' centres; its impulse enters with the ghost
-    // weights. Nodes without mass take no part, and the weights of the others are scaled to
-    // sum to one.
+  // The stencil of the contact point, on the wall: the velocity there is the contact's, so a
+  // ball rolls on the wall, not on its particles' centres; its impulse enters with the ghost
+  // weights. Nodes without mass take no part, and the weights of the others are scaled to
+  // sum to one.
 #pragma omp parallel for schedule(static) if (sn * S >= kParallelMinItems)
   for (std::ptrdiff_t c = 0; c < sn; ++c) {
     dispatch_kernel(kernel, [&]<Kernel K>() {
