@@ -70,6 +70,7 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
   const Vec3i lo = stencil_base<K>(Vec3(lx, ly, lz), origin, inv_h);
   const Vec3i hi = stencil_base<K>(Vec3(hx, hy, hz), origin, inv_h);
   const Vec3i ext = hi - lo + Vec3i::Ones();
+  ord.lo = lo, ord.ext = ext;
 
   // Counting sort by base cell inside the active box (x slowest), in parallel: each thread
   // counts the cells of its own contiguous chunk of particles; thread t's particles of cell c

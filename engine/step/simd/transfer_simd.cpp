@@ -1,6 +1,7 @@
 #include "engine/step/simd/transfer_simd.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cstdint>
 #include <stdexcept>
 #include <type_traits>
@@ -525,7 +526,10 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
   for (std::size_t q = begin; q < end;) {
     const std::uint32_t cell = ord.keys[ord.order[q]];
     if (q >= pb.b1) fill_batch<K, T>(p, ord, fold, g, dt, q, end, sb, pb);
-    const Vec3i next(pb.base[0][q - pb.b0], pb.base[1][q - pb.b0], pb.base[2][q - pb.b0]);
+    // The window sits on the sort's cell, whose blocks are active, whatever the lanes computed
+    // (they agree: the lanes round as the sort does, tests/transfers/test_simd.cpp).
+    const Vec3i next = ord.cell_base(cell);
+    assert(next == Vec3i(pb.base[0][q - pb.b0], pb.base[1][q - pb.b0], pb.base[2][q - pb.b0]));
     if (open && next == base + Vec3i(0, 0, 1)) {
       spill();
       std::size_t at[N * N];
