@@ -70,9 +70,54 @@ std::size_t stress_batch(const BatchModel& model, const StoredMat3* F, const Rea
   return static_cast<std::size_t>(__builtin_popcountll(redo));
 }
 
+/// Water's return map over particles [0, count), count <= kLanes: F = J^(1/3) I in double
+/// lanes. J is det F in the order of Eigen's 3x3 determinant, as the scalar path computes it;
+/// the root is exp(log J / 3) and one Newton step, within a unit of the last place of double
+/// before F's one rounding to its storage. Particles with J <= 0 take the scalar map (std::cbrt).
+/// Returns those fallbacks.
+std::size_t project_water_batch(StoredMat3* F, std::size_t count) {
+  using DD = hn::ScalableTag<double>;
+  const DD dd;
+  constexpr std::size_t kDoubles = HWY_LANES(double);
+  alignas(64) double m[9][kLanes], root[kLanes];
+  for (std::size_t l = 0; l < kLanes; ++l) {
+    const StoredReal* f = F[std::min(l, count - 1)].data();
+    for (int e = 0; e < 9; ++e) m[e][l] = static_cast<double>(f[e]);
+  }
+  std::uint64_t redo = 0;
+  for (std::size_t h = 0; h < kLanes; h += kDoubles) {
+    hn::Vec<DD> a[9];  // column-major: a[3 c + r] = F(r, c)
+    for (int e = 0; e < 9; ++e) a[e] = hn::Load(dd, m[e] + h);
+    const auto cofactor = [](auto p, auto q, auto r, auto s) {
+      return hn::Sub(hn::Mul(p, q), hn::Mul(r, s));
+    };
+    const hn::Vec<DD> J = hn::Add(
+        hn::Sub(hn::Mul(a[0], cofactor(a[4], a[8], a[7], a[5])),
+                hn::Mul(a[3], cofactor(a[1], a[8], a[7], a[2]))),
+        hn::Mul(a[6], cofactor(a[1], a[5], a[4], a[2])));
+    const auto bad = hn::Not(hn::Gt(J, hn::Zero(dd)));  // also NaN
+    const hn::Vec<DD> Jsafe = hn::IfThenElse(bad, hn::Set(dd, 1.0), J);
+    hn::Vec<DD> x = hn::Exp(dd, hn::Mul(hn::Log(dd, Jsafe), hn::Set(dd, 1.0 / 3)));
+    x = hn::Sub(x, hn::Div(hn::Sub(x, hn::Div(Jsafe, hn::Mul(x, x))), hn::Set(dd, 3.0)));
+    hn::Store(x, dd, root + h);
+    redo |= lanes::mask_bits(dd, bad, kDoubles) << h;
+  }
+  if (count < 64) redo &= (std::uint64_t{1} << count) - 1;
+  for (std::size_t l = 0; l < count; ++l) {
+    if (redo >> l & 1) {
+      F[l] = to_stored(materials::TaitWater::project(to_real(F[l])));
+      continue;
+    }
+    StoredReal* o = F[l].data();
+    for (int e = 0; e < 9; ++e) o[e] = e % 4 == 0 ? static_cast<StoredReal>(root[l]) : 0;
+  }
+  return static_cast<std::size_t>(__builtin_popcountll(redo));
+}
+
 /// The return map of `model` over particles [0, count), count <= kLanes, and their `state`.
 /// Returns the fallbacks.
 std::size_t project_batch(const BatchModel& model, StoredMat3* F, Real* state, std::size_t count) {
+  if (model.kind == BatchModel::Kind::water) return project_water_batch(F, count);
   const DF d;
   VF f[9];
   load_lanes(F, count, f);
@@ -133,7 +178,7 @@ std::size_t ProjectImpl(const BatchModel& model, StoredMat3* F, Real* state, std
 #pragma omp parallel for schedule(static) reduction(+ : fallbacks) if (n >= kParallelMinItems)
   for (std::ptrdiff_t b = 0; b < batches; ++b) {
     const std::size_t q0 = static_cast<std::size_t>(b) * kLanes;
-    fallbacks += project_batch(model, F + q0, state + q0, std::min(kLanes, n - q0));
+    fallbacks += project_batch(model, F + q0, state ? state + q0 : nullptr, std::min(kLanes, n - q0));
   }
   return fallbacks;
 }
@@ -195,7 +240,8 @@ Mat3 kirchhoff(const BatchModel& model, const Mat3& F, Real state) {
 }
 
 bool supports_projection(const BatchModel& model) {
-  return model.kind == BatchModel::Kind::snow || model.kind == BatchModel::Kind::sand;
+  using K = BatchModel::Kind;
+  return model.kind == K::snow || model.kind == K::sand || model.kind == K::water;
 }
 
 std::size_t project(const BatchModel& model, std::span<StoredMat3> F, std::span<Real> state) {
@@ -209,6 +255,8 @@ void project_scalar(const BatchModel& model, StoredMat3& F, Real& state) {
     if (snow_plasticity(model).project(Fe, state)) F = to_stored(Fe);
     return;
   }
+  if (model.kind == BatchModel::Kind::water)
+    F = to_stored(materials::TaitWater::project(to_real(F)));
   if (model.kind == BatchModel::Kind::sand)
     materials::project_sand(
         {model.mu, model.lambda, model.alpha, model.apex_trace, model.volume_correction}, F, state);
