@@ -71,10 +71,10 @@ std::size_t stress_batch(const BatchModel& model, const StoredMat3* F, const Rea
 }
 
 /// Water's return map over particles [0, count), count <= kLanes: F = J^(1/3) I in double
-/// lanes. J is det F in the order of Eigen's 3x3 determinant, as the scalar path computes it;
-/// the root is exp(log J / 3) and one Newton step, within a unit of the last place of double
-/// before F's one rounding to its storage. Particles with J <= 0 take the scalar map (std::cbrt).
-/// Returns those fallbacks.
+/// lanes. J is det F in the order of Eigen's 3x3 determinant, as the scalar path computes it
+/// (not lanes::determinant, whose fused MulSub rounds differently); the root is exp(log J / 3)
+/// and one Newton step, within a unit of the last place of double before F's one rounding to
+/// its storage. Particles with J <= 0 take the scalar map (std::cbrt). Returns those fallbacks.
 std::size_t project_water_batch(StoredMat3* F, std::size_t count) {
   using DD = hn::ScalableTag<double>;
   const DD dd;
