@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <type_traits>
 #include <vector>
 
 #include "engine/step/simd/stress_simd.h"
@@ -172,8 +173,9 @@ TEST_CASE("SIMD return map of water, F = J^(1/3) I, matches the scalar one to F'
       CHECK(a(0, 0) == a(2, 2));
       identical += a == b;
     }
-    // A root rounded to float from within a double ulp or two of the exact one is nearly always
-    // std::cbrt's: the lanes are not a looser approximation.
-    CHECK(identical >= F.size() - 2);
+    // Stored in float, a root within a double ulp or two of the exact one rounds nearly always
+    // to std::cbrt's: the lanes are not a looser approximation. (Stored in double, about half
+    // differ from std::cbrt in the last place, which the bound above allows.)
+    if constexpr (std::is_same_v<StoredReal, float>) CHECK(identical >= F.size() - 2);
   });
 }
