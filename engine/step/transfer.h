@@ -26,8 +26,8 @@ struct ParticleOrder {
                                         ///< where cell c's run in `order` starts (cells + 1).
   std::vector<std::uint32_t> keys;      ///< Each particle's stencil base cell (particles_to_grid
                                         ///< sums a cell's particles before writing its nodes).
-  Vec3i lo = Vec3i::Zero();   ///< The least stencil base: key 0's cell.
-  Vec3i ext = Vec3i::Zero();  ///< Cells per axis of the keys' box (z fastest).
+  Vec3i lo = Vec3i::Zero();             ///< The least stencil base: key 0's cell.
+  Vec3i ext = Vec3i::Zero();            ///< Cells per axis of the keys' box (z fastest).
 
   /// The stencil base cell of key `key`: the one whose nodes sort_particles activated.
   Vec3i cell_base(std::uint32_t key) const {

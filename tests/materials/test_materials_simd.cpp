@@ -166,8 +166,8 @@ TEST_CASE("SIMD return map of water, F = J^(1/3) I, matches the scalar one to F'
       const Mat3 a = to_real(lanes[q]), b = to_real(scalar[q]);
       // The same J (Eigen's order), a root within a double ulp or two of std::cbrt's: at most
       // one unit of F's storage apart, and off the diagonal exactly zero.
-      CHECK((a - b).cwiseAbs().maxCoeff() <= 2 * std::numeric_limits<StoredReal>::epsilon() *
-                                                  std::abs(b(0, 0)));
+      CHECK((a - b).cwiseAbs().maxCoeff() <=
+            2 * std::numeric_limits<StoredReal>::epsilon() * std::abs(b(0, 0)));
       CHECK((a - Mat3(a.diagonal().asDiagonal())).cwiseAbs().maxCoeff() == 0);
       CHECK(a(0, 0) == a(1, 1));
       CHECK(a(0, 0) == a(2, 2));

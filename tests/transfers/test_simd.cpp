@@ -203,8 +203,7 @@ TEST_CASE("SIMD and scalar particle-to-grid agree for particles on cells' halves
         for (int c = 0; c < 12; ++c) {
           const Vec3 corner = Vec3::Constant(start) + Vec3(a, b, c) * h;
           for (int s = 0; s < 8; ++s)
-            x.push_back(corner +
-                          (Vec3(s / 4, (s / 2) % 2, s % 2) + Vec3::Constant(0.5)) / 2 * h);
+            x.push_back(corner + (Vec3(s / 4, (s / 2) % 2, s % 2) + Vec3::Constant(0.5)) / 2 * h);
         }
     const Particles p = random_state(x, 3);
     INFO("grid origin at " << j << "/8 of a cell");

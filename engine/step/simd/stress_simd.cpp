@@ -91,10 +91,9 @@ std::size_t project_water_batch(StoredMat3* F, std::size_t count) {
     const auto cofactor = [](auto p, auto q, auto r, auto s) {
       return hn::Sub(hn::Mul(p, q), hn::Mul(r, s));
     };
-    const hn::Vec<DD> J = hn::Add(
-        hn::Sub(hn::Mul(a[0], cofactor(a[4], a[8], a[7], a[5])),
-                hn::Mul(a[3], cofactor(a[1], a[8], a[7], a[2]))),
-        hn::Mul(a[6], cofactor(a[1], a[5], a[4], a[2])));
+    const hn::Vec<DD> J = hn::Add(hn::Sub(hn::Mul(a[0], cofactor(a[4], a[8], a[7], a[5])),
+                                          hn::Mul(a[3], cofactor(a[1], a[8], a[7], a[2]))),
+                                  hn::Mul(a[6], cofactor(a[1], a[5], a[4], a[2])));
     const auto bad = hn::Not(hn::Gt(J, hn::Zero(dd)));  // also NaN
     const hn::Vec<DD> Jsafe = hn::IfThenElse(bad, hn::Set(dd, 1.0), J);
     hn::Vec<DD> x = hn::Exp(dd, hn::Mul(hn::Log(dd, Jsafe), hn::Set(dd, 1.0 / 3)));
@@ -178,7 +177,8 @@ std::size_t ProjectImpl(const BatchModel& model, StoredMat3* F, Real* state, std
 #pragma omp parallel for schedule(static) reduction(+ : fallbacks) if (n >= kParallelMinItems)
   for (std::ptrdiff_t b = 0; b < batches; ++b) {
     const std::size_t q0 = static_cast<std::size_t>(b) * kLanes;
-    fallbacks += project_batch(model, F + q0, state ? state + q0 : nullptr, std::min(kLanes, n - q0));
+    fallbacks +=
+        project_batch(model, F + q0, state ? state + q0 : nullptr, std::min(kLanes, n - q0));
   }
   return fallbacks;
 }

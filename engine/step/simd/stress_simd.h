@@ -33,9 +33,10 @@ bool supports_projection(const BatchModel& model);
 
 /// The plasticity stage of `model`'s group in float lanes (water's F = J^(1/3) I in double
 /// lanes): projects each F of the group's range and updates its plastic `state` (snow's Jp,
-/// sand's volume correction; water has none), as the group's apply_plasticity does in double. Particles the lanes cannot project to float accuracy
-/// (inverted, or nearly singular) take the scalar double projection (project_scalar). Returns
-/// how many did. Bit-identical for any thread count.
+/// sand's volume correction; water has none), as the group's apply_plasticity does in double.
+/// Particles the lanes cannot project to float accuracy (inverted, or nearly singular) take the
+/// scalar double projection (project_scalar). Returns how many did. Bit-identical for any thread
+/// count.
 std::size_t project(const BatchModel& model, std::span<StoredMat3> F, std::span<Real> state);
 
 /// The scalar double return map of `model` (snow, sand, water) on one particle's F and state.
