@@ -1,12 +1,14 @@
 #include "engine/step/transfer.h"
 
+#include <omp.h>
+
 #include <algorithm>
+#include <atomic>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <utility>
-
-#include <omp.h>
 
 #include "engine/step/kernels.h"
 #include "engine/step/simd/transfer_simd.h"
@@ -25,36 +27,116 @@ int slab_width(Kernel k) { return std::max(2, kernel_nodes(k) - 1); }
 /// A constant, not the thread count, so the sums are the same for any count.
 constexpr int kSlabs = 16;
 
-/// Gives storage to the grid blocks that hold a node of some particle's stencil: every
-/// non-empty cell (counts is the prefix sum over the cells of the box lo + [0, ext)) marks the
-/// blocks of its N^3 nodes.
+/// The blocks holding the nodes of the stencil from `base`: the first block and the last
+/// (each at most one more per axis, Grid::stencil_indices).
 template <Kernel K>
-void activate_touched_blocks(const ParticleOrder& ord, const Vec3i& lo, const Vec3i& ext,
-                             Grid& grid) {
+std::pair<Vec3i, Vec3i> stencil_blocks(const Vec3i& base) {
   constexpr int N = KernelTraits<K>::kNodes, B = Grid::kBlockBits;
-  grid.release_blocks();
-  std::size_t c = 0;
-  for (int x = 0; x < ext.x(); ++x)
-    for (int y = 0; y < ext.y(); ++y)
-      for (int z = 0; z < ext.z(); ++z, ++c) {
-        if (ord.counts[c + 1] == ord.counts[c]) continue;
-        const Vec3i first = lo + Vec3i(x, y, z), last = first + Vec3i::Constant(N - 1);
-        for (int bi = first.x() >> B; bi <= last.x() >> B; ++bi)
-          for (int bj = first.y() >> B; bj <= last.y() >> B; ++bj)
-            for (int bk = first.z() >> B; bk <= last.z() >> B; ++bk)
-              grid.slot[grid.page(bi, bj, bk)] = 0;
-      }
-  const Vec3i hi = lo + ext - Vec3i::Ones() + Vec3i::Constant(N - 1);
-  grid.activate_blocks(Vec3i(lo.x() >> B, lo.y() >> B, lo.z() >> B),
-                       Vec3i(hi.x() >> B, hi.y() >> B, hi.z() >> B));
+  const Vec3i last = base + Vec3i::Constant(N - 1);
+  return {Vec3i(base.x() >> B, base.y() >> B, base.z() >> B),
+          Vec3i(last.x() >> B, last.y() >> B, last.z() >> B)};
 }
 
-/// The counting sort of sort_particles for kernel K (dispatched once, not per particle).
+/// Marks the blocks [first, last] for storage (Grid::activate_blocks). Threads may mark the
+/// same block: the store is atomic, and they all store 0.
+void mark_blocks(const std::pair<Vec3i, Vec3i>& blocks, Grid& grid) {
+  const auto& [first, last] = blocks;
+  for (int bi = first.x(); bi <= last.x(); ++bi)
+    for (int bj = first.y(); bj <= last.y(); ++bj)
+      for (int bk = first.z(); bk <= last.z(); ++bk)
+        std::atomic_ref<std::int32_t>(grid.slot[grid.page(bi, bj, bk)])
+            .store(0, std::memory_order_relaxed);
+}
+
+/// The stable counting sort by key (`key_of(i)`, below `cells`), for a box of at most two
+/// cells per particle: sets `keys`, lists in `order` each cell's particles by index, cells in
+/// key order, and marks the blocks of every occupied cell's stencil. In parallel: each thread
+/// counts the cells of its own contiguous chunk of particles, and thread t's particles of cell
+/// c go after those of the threads before it, so `order` is the serial sort's for any thread
+/// count.
+template <Kernel K, class KeyOf>
+void counting_sort(std::size_t cells, KeyOf&& key_of, ParticleOrder& ord, Grid& grid) {
+  const std::size_t n = ord.order.size();
+  std::vector<std::uint32_t>& keys = ord.keys;
+  std::vector<std::uint32_t>& at = ord.scratch;
+  std::vector<std::uint32_t>& start = ord.counts;
+  start.resize(cells + 1);
+  start[0] = 0;
+  // Each thread's counts cover the whole box: no more threads than keep them within two
+  // counts per particle.
+  const int threads =
+      static_cast<int>(std::clamp<std::size_t>(2 * n / cells, 1, omp_get_max_threads()));
+  // Sized here, on the calling thread: allocated inside the team by whichever thread came
+  // first, the buffer could come from that thread's malloc arena, which returns freed memory
+  // to the system less readily (jello 4M's peak then varied between 148 and 160 B/particle).
+  at.assign(static_cast<std::size_t>(threads) * cells, 0);
+#pragma omp parallel num_threads(threads) if (n >= kParallelMinItems)
+  {
+    const std::size_t team = static_cast<std::size_t>(omp_get_num_threads());
+    const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
+    const std::size_t first = n * t / team, last = n * (t + 1) / team;
+    std::uint32_t* mine = at.data() + t * cells;
+    for (std::size_t i = first; i < last; ++i) ++mine[keys[i] = key_of(i)];
+#pragma omp barrier
+#pragma omp single
+    {
+      // at[t][c] becomes where thread t's first particle of cell c goes; start[c] is where
+      // cell c starts.
+      std::uint32_t end = 0;
+      for (std::size_t c = 0; c < cells; ++c) {
+        for (std::size_t u = 0; u < team; ++u) end += std::exchange(at[u * cells + c], end);
+        start[c + 1] = end;
+      }
+    }
+    for (std::size_t i = first; i < last; ++i)
+      ord.order[mine[keys[i]]++] = static_cast<std::uint32_t>(i);
+  }
+  std::size_t c = 0;
+  for (int x = 0; x < ord.ext.x(); ++x)
+    for (int y = 0; y < ord.ext.y(); ++y)
+      for (int z = 0; z < ord.ext.z(); ++z, ++c)
+        if (start[c + 1] != start[c]) mark_blocks(stencil_blocks<K>(ord.lo + Vec3i(x, y, z)), grid);
+}
+
+/// The same order as counting_sort by least-significant-digit radix passes (each a stable
+/// counting sort on up to 11 bits of the key), on one thread: time in proportion to the
+/// particles, where counting_sort's passes over the cells would cost more (a sparse box).
+void radix_sort(std::size_t cells, ParticleOrder& ord) {
+  const std::size_t n = ord.order.size();
+  const std::vector<std::uint32_t>& keys = ord.keys;
+  const int bits = std::max(1, static_cast<int>(std::bit_width(cells - 1)));
+  const int passes = (bits + 10) / 11, digit = (bits + passes - 1) / passes;
+  const std::uint32_t mask = (std::uint32_t{1} << digit) - 1;
+  std::vector<std::uint32_t>& tmp = ord.scratch;
+  tmp.resize(n);
+  // Passes alternate between the two arrays and end in `order`; the first reads the keys in
+  // particle order.
+  std::uint32_t* src = nullptr;
+  std::uint32_t* dst = passes % 2 ? ord.order.data() : tmp.data();
+  std::vector<std::uint32_t> at(std::size_t{1} << digit);
+  for (int pass = 0, shift = 0; pass < passes; ++pass, shift += digit) {
+    const auto particle = [&](std::size_t j) {
+      return src ? src[j] : static_cast<std::uint32_t>(j);
+    };
+    std::fill(at.begin(), at.end(), 0u);
+    for (std::size_t j = 0; j < n; ++j) ++at[(keys[particle(j)] >> shift) & mask];
+    std::uint32_t end = 0;
+    for (std::uint32_t& a : at) end += std::exchange(a, end);
+    for (std::size_t j = 0; j < n; ++j) {
+      const std::uint32_t i = particle(j);
+      dst[at[(keys[i] >> shift) & mask]++] = i;
+    }
+    src = dst;
+    dst = dst == tmp.data() ? ord.order.data() : tmp.data();
+  }
+}
+
+/// Sorts by the base cell of kernel K's stencil (dispatched once, not per particle), activates
+/// the blocks the stencils touch and places the slabs.
 template <Kernel K>
 void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
   const std::size_t n = p.size();
   const Vec3 origin = grid.origin, inv_h = grid.inv_h;
-  const auto base = [&](std::size_t i) { return stencil_base<K>(p.x[i], origin, inv_h); };
   // Bounds of the stencil bases: the active nodes are [lo, hi + N - 1]. The base is a
   // non-decreasing function of each coordinate, so the bounds are the bases of the smallest
   // and largest coordinates: a min/max pass with no floor per particle.
@@ -72,65 +154,60 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
   const Vec3i ext = hi - lo + Vec3i::Ones();
   ord.lo = lo, ord.ext = ext;
 
-  // Counting sort by base cell inside the active box (x slowest), in parallel: each thread
-  // counts the cells of its own contiguous chunk of particles; thread t's particles of cell c
-  // go after those of the threads before it, so `order` is the serial stable sort's for any
-  // thread count.
+  // Keys: base cells inside the active box, x slowest, z fastest.
   const std::size_t cells = static_cast<std::size_t>(ext.x()) * ext.y() * ext.z();
-  ord.counts.resize(cells + 1);
-  ord.counts[0] = 0;
+  const auto key = [&](const Vec3i& base) {
+    const Vec3i k = base - lo;
+    return static_cast<std::uint32_t>(
+        (static_cast<std::size_t>(k.x()) * ext.y() + k.y()) * ext.z() + k.z());
+  };
+  const auto key_of = [&](std::size_t i) { return key(stencil_base<K>(p.x[i], origin, inv_h)); };
   std::vector<std::uint32_t>& keys = ord.keys;  // reused: no allocation per substep
   keys.resize(n);
-  std::vector<std::uint32_t>& at = ord.thread_counts;
-  // Each thread's counts cover the whole box: no more threads than keep them within two
-  // counts per particle (a sparse box sorts on fewer threads rather than take the memory).
-  const int threads =
-      static_cast<int>(std::clamp<std::size_t>(2 * n / cells, 1, omp_get_max_threads()));
-  // Sized here, on the calling thread: allocated inside the team by whichever thread came
-  // first, the buffer could come from that thread's malloc arena, which returns freed memory
-  // to the system less readily (jello 4M's peak then varied between 148 and 160 B/particle).
-  at.assign(static_cast<std::size_t>(threads) * cells, 0);
-#pragma omp parallel num_threads(threads) if (count >= kParallelMinItems)
-  {
-    const std::size_t team = static_cast<std::size_t>(omp_get_num_threads());
-    const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
-    const std::size_t first = n * t / team, last = n * (t + 1) / team;
-    std::uint32_t* mine = at.data() + t * cells;
-    for (std::size_t i = first; i < last; ++i) {
-      const Vec3i b = base(i) - lo;
-      const auto key = static_cast<std::uint32_t>(
-          (static_cast<std::size_t>(b.x()) * ext.y() + b.y()) * ext.z() + b.z());
-      keys[i] = key;
-      ++mine[key];
-    }
-#pragma omp barrier
-#pragma omp single
+  grid.release_blocks();
+  if (cells <= 2 * n) {
+    counting_sort<K>(cells, key_of, ord, grid);
+  } else {
+    // A box of more than two cells per particle (a body broken into dust): passes over the
+    // cells would cost more than the particles. Each particle whose stencil's blocks differ
+    // from the particle's before it marks them, and the radix sort orders the keys.
+#pragma omp parallel if (count >= kParallelMinItems)
     {
-      // at[t][c] becomes where thread t's first particle of cell c goes; counts[c] is where
-      // cell c starts.
-      std::uint32_t end = 0;
-      for (std::size_t c = 0; c < cells; ++c) {
-        for (std::size_t u = 0; u < team; ++u)
-          end += std::exchange(at[u * cells + c], end);
-        ord.counts[c + 1] = end;
+      std::pair<Vec3i, Vec3i> marked(Vec3i::Zero(), -Vec3i::Ones());
+#pragma omp for schedule(static)
+      for (std::ptrdiff_t i = 0; i < count; ++i) {
+        const Vec3i base = stencil_base<K>(p.x[i], origin, inv_h);
+        keys[i] = key(base);
+        const std::pair<Vec3i, Vec3i> blocks = stencil_blocks<K>(base);
+        if (blocks != marked) mark_blocks(blocks, grid);
+        marked = blocks;
       }
     }
-    for (std::size_t i = first; i < last; ++i)
-      ord.order[mine[keys[i]]++] = static_cast<std::uint32_t>(i);
+    radix_sort(cells, ord);
   }
-  activate_touched_blocks<K>(ord, lo, ext, grid);
+  const Vec3i top = hi + Vec3i::Constant(KernelTraits<K>::kNodes - 1);
+  constexpr int B = Grid::kBlockBits;
+  grid.activate_blocks(Vec3i(lo.x() >> B, lo.y() >> B, lo.z() >> B),
+                       Vec3i(top.x() >> B, top.y() >> B, top.z() >> B));
+
   // Slab boundaries at x-planes of cells, each slab at least `width` planes thick, placed
   // where the count of particles before them is nearest above s n / slabs: the slabs of a
   // colour hold about the same number of particles, so threads finish a colour together.
+  const auto start_of_plane = [&](int x) {  // particles in the planes before x
+    const auto key = static_cast<std::uint32_t>(static_cast<std::size_t>(x) * ext.y() * ext.z());
+    return static_cast<std::size_t>(
+        std::partition_point(ord.order.begin(), ord.order.end(),
+                             [&](std::uint32_t i) { return keys[i] < key; }) -
+        ord.order.begin());
+  };
   const int width = slab_width(K);
   const int slabs = std::max(1, std::min(kSlabs, ext.x() / width) & ~1);
-  const std::size_t plane = static_cast<std::size_t>(ext.y()) * ext.z();
   ord.slab_start.assign(1, 0);
   for (int s = 1, x = 0; s < slabs; ++s) {
     const int latest = ext.x() - (slabs - s) * width;  // room for the slabs after this one
     int next = x + width;
-    while (next < latest && ord.counts[next * plane] < n * s / slabs) ++next;
-    ord.slab_start.push_back(ord.counts[next * plane]);
+    while (next < latest && start_of_plane(next) < n * s / slabs) ++next;
+    ord.slab_start.push_back(start_of_plane(next));
     x = next;
   }
   ord.slab_start.push_back(n);

@@ -23,7 +23,8 @@ struct ParticleOrder {
   std::vector<std::uint32_t> order;     ///< Particle indices sorted by stencil base cell.
   std::vector<std::size_t> slab_start;  ///< order[slab_start[s] .. slab_start[s+1]) is slab s.
   std::vector<std::uint32_t> counts;    ///< The counting sort's cell offsets: counts[c] is
-                                        ///< where cell c's run in `order` starts (cells + 1).
+                                        ///< where cell c's run in `order` starts (cells + 1;
+                                        ///< dense boxes only, the radix sort sets none).
   std::vector<std::uint32_t> keys;      ///< Each particle's stencil base cell (particles_to_grid
                                         ///< sums a cell's particles before writing its nodes).
   Vec3i lo = Vec3i::Zero();             ///< The least stencil base: key 0's cell.
@@ -34,8 +35,9 @@ struct ParticleOrder {
     const auto z = static_cast<int>(key % ext.z()), yx = static_cast<int>(key / ext.z());
     return lo + Vec3i(yx / ext.y(), yx % ext.y(), z);
   }
-  std::vector<std::uint32_t> thread_counts;  ///< The parallel sort's scratch: per thread and
-                                             ///< cell, its particles' next place in `order`.
+  /// The sort's scratch: the counting sort's next place in `order` per thread and cell, or
+  /// the radix sort's second array.
+  std::vector<std::uint32_t> scratch;
 };
 
 /// Sorts particles by the base cell of `kernel`'s stencil and activates the grid blocks their

@@ -1,11 +1,13 @@
 // Particle <-> grid transfers keep mass, linear momentum and (APIC) angular momentum.
-#include <catch2/catch.hpp>
-
 #include <omp.h>
 
+#include <algorithm>
+#include <catch2/catch.hpp>
 #include <random>
+#include <tuple>
 
 #include "engine/step/grid.h"
+#include "engine/step/kernels.h"
 #include "engine/step/transfer.h"
 #include "support/helpers.h"
 
@@ -180,4 +182,87 @@ TEST_CASE("the stress impulse scattered with the momentum equals the force appli
     CHECK(scale > 0);  // the stress really moved the nodes
     CHECK(diff <= 1e-12 * scale + 1e-13);
   }
+}
+
+namespace {
+
+/// Checks `ord` against the stable sort by stencil base cell (ties by index) of kernel K,
+/// the blocks of every stencil active, and slabs that start on x-planes of cells.
+template <Kernel K>
+void check_sorted(const Particles& p, const Grid& g, const ParticleOrder& ord) {
+  constexpr int N = KernelTraits<K>::kNodes;
+  const std::size_t n = p.size();
+  std::vector<Vec3i> base(n);
+  for (std::size_t i = 0; i < n; ++i) base[i] = stencil_base<K>(p.x[i], g.origin, g.inv_h);
+  const auto lex = [](const Vec3i& a, const Vec3i& b) {
+    return std::tie(a.x(), a.y(), a.z()) < std::tie(b.x(), b.y(), b.z());
+  };
+  std::vector<std::uint32_t> expected(n);
+  for (std::size_t i = 0; i < n; ++i) expected[i] = static_cast<std::uint32_t>(i);
+  std::stable_sort(expected.begin(), expected.end(),
+                   [&](std::uint32_t a, std::uint32_t b) { return lex(base[a], base[b]); });
+  REQUIRE(ord.order == expected);
+  std::size_t inactive = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    CHECK(ord.cell_base(ord.keys[i]) == base[i]);
+    for (int a = 0; a < N; ++a)
+      for (int b = 0; b < N; ++b)
+        for (int c = 0; c < N; ++c) {
+          const Vec3i node = base[i] + Vec3i(a, b, c);
+          inactive += g.slot[g.page(node.x() >> Grid::kBlockBits, node.y() >> Grid::kBlockBits,
+                                    node.z() >> Grid::kBlockBits)] < 0;
+        }
+  }
+  CHECK(inactive == 0);
+  REQUIRE(ord.slab_start.front() == 0);
+  REQUIRE(ord.slab_start.back() == n);
+  for (std::size_t s = 1; s + 1 < ord.slab_start.size(); ++s) {
+    const std::size_t q = ord.slab_start[s];
+    CHECK(ord.slab_start[s - 1] <= q);
+    if (q > 0 && q < n) CHECK(base[ord.order[q - 1]].x() < base[ord.order[q]].x());
+  }
+}
+
+}  // namespace
+
+TEST_CASE(
+    "The sort is the stable sort by cell, on dense boxes and on sparse ones, in cell "
+    "order or not",
+    "[transfers]") {
+  // 3000 particles in a 16^3 grid take the counting sort; spread over a 96^3 grid, about 60
+  // cells of their box per particle, the radix sort. Each starts in the cell order of the
+  // quadratic kernel, with some particles then moved by up to 3 cells along an axis (or all
+  // anywhere).
+  std::mt19937 rng(11);
+  for (const bool sparse : {false, true})
+    for (const int moved : {0, 20, 150, 3000}) {  // 3000: no order left, the counting sort
+      INFO("sparse " << sparse << ", particles moved " << moved);
+      Particles p = random_cloud(3000, false, 5);
+      const int cells = sparse ? 96 : 16;
+      if (sparse)
+        for (Vec3& x : p.x) x = (x - Vec3::Constant(0.3)) / 0.4 * 0.9 + Vec3::Constant(0.05);
+      Grid g(unit_grid(cells), false);
+      ParticleOrder ord;
+      sort_particles(p, Kernel::quadratic, g, ord);
+      const std::vector<Vec3> x = p.x;
+      for (std::size_t q = 0; q < p.size(); ++q) p.x[q] = x[ord.order[q]];  // in cell order
+      // Move some particles by a cell or more along an axis (or anywhere, at 3000).
+      std::uniform_int_distribution<std::size_t> which(0, p.size() - 1);
+      std::uniform_int_distribution<int> axis(0, 2), cells_by(-3, 3);
+      std::uniform_real_distribution<double> anywhere(0.2, 0.8);
+      for (int m = 0; m < moved; ++m) {
+        Vec3& y = p.x[which(rng)];
+        if (moved == 3000) {
+          y = Vec3(anywhere(rng), anywhere(rng), anywhere(rng));
+        } else {
+          const int a = axis(rng);
+          y[a] = std::clamp(y[a] + cells_by(rng) * g.h[a], 0.2, 0.8);
+        }
+      }
+      for (Kernel kernel : kAllKernels) {
+        INFO("kernel " << static_cast<int>(kernel));
+        sort_particles(p, kernel, g, ord);
+        dispatch_kernel(kernel, [&]<Kernel K>() { check_sorted<K>(p, g, ord); });
+      }
+    }
 }

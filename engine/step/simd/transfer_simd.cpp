@@ -551,7 +551,8 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
     }
     base = next;
     open = true;
-    const std::size_t cell_end = std::min<std::size_t>(end, ord.counts[cell + 1]);
+    std::size_t cell_end = q + 1;
+    while (cell_end < end && ord.keys[ord.order[cell_end]] == cell) ++cell_end;
     for (; q < cell_end; ++q) {
       if (q >= pb.b1) fill_batch<K, T>(p, ord, fold, g, dt, q, end, sb, pb);
       const std::size_t l = q - pb.b0;
