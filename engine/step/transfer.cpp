@@ -91,11 +91,15 @@ void counting_sort(std::size_t cells, KeyOf&& key_of, ParticleOrder& ord, Grid& 
     for (std::size_t i = first; i < last; ++i)
       ord.order[mine[keys[i]]++] = static_cast<std::uint32_t>(i);
   }
-  std::size_t c = 0;
-  for (int x = 0; x < ord.ext.x(); ++x)
-    for (int y = 0; y < ord.ext.y(); ++y)
-      for (int z = 0; z < ord.ext.z(); ++z, ++c)
+  // The occupied cells mark their blocks, in parallel over x-planes of cells.
+  const Vec3i ext = ord.ext;
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+  for (int x = 0; x < ext.x(); ++x) {
+    std::size_t c = static_cast<std::size_t>(x) * ext.y() * ext.z();
+    for (int y = 0; y < ext.y(); ++y)
+      for (int z = 0; z < ext.z(); ++z, ++c)
         if (start[c + 1] != start[c]) mark_blocks(stencil_blocks<K>(ord.lo + Vec3i(x, y, z)), grid);
+  }
 }
 
 /// The same order as counting_sort by least-significant-digit radix passes (each a stable
