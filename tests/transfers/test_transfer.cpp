@@ -229,35 +229,40 @@ TEST_CASE(
     "The sort is the stable sort by cell, on dense boxes and on sparse ones, in cell "
     "order or not",
     "[transfers]") {
-  // 3000 particles in a 16^3 grid take the counting sort; spread over a 96^3 grid, about 60
-  // cells of their box per particle, the radix sort. Each starts in the cell order of the
-  // quadratic kernel, with some particles then moved by up to 3 cells along an axis (or all
-  // anywhere).
+  // Each cloud starts in the cell order of the quadratic kernel; then some particles move by
+  // up to 3 cells along an axis, or all move anywhere.
+  struct Cloud {
+    int cells;          ///< Grid cells per axis.
+    std::size_t count;  ///< Particles.
+    double lo, hi;      ///< Where they are spread, a fraction of the grid per axis.
+  };
+  const Cloud clouds[] = {
+      {16, 3000, 0.3, 0.7},     // 2^3 cells of the box per particle: the counting sort
+      {12, 100, 0.2, 0.8},      // about 700 cells, 10 bits: the radix sort in one pass
+      {96, 3000, 0.05, 0.95},   // about 200 per particle, 20 bits: two passes
+      {200, 3000, 0.05, 0.95},  // 180^3 cells, 23 bits: three passes
+  };
   std::mt19937 rng(11);
-  for (const bool sparse : {false, true})
-    for (const int moved : {0, 20, 150, 3000}) {  // 3000: no order left, the counting sort
-      INFO("sparse " << sparse << ", particles moved " << moved);
-      Particles p = random_cloud(3000, false, 5);
-      const int cells = sparse ? 96 : 16;
-      if (sparse)
-        for (Vec3& x : p.x) x = (x - Vec3::Constant(0.3)) / 0.4 * 0.9 + Vec3::Constant(0.05);
-      Grid g(unit_grid(cells), false);
+  for (const Cloud& cloud : clouds)
+    for (const int moved : {0, 20, 150, -1}) {  // -1: every particle anywhere
+      INFO(cloud.cells << "^3 grid, " << cloud.count << " particles, moved " << moved);
+      Particles p = random_cloud(cloud.count, false, 5);
+      for (Vec3& x : p.x)
+        x = (x - Vec3::Constant(0.3)) / 0.4 * (cloud.hi - cloud.lo) + Vec3::Constant(cloud.lo);
+      Grid g(unit_grid(cloud.cells), false);
       ParticleOrder ord;
       sort_particles(p, Kernel::quadratic, g, ord);
       const std::vector<Vec3> x = p.x;
       for (std::size_t q = 0; q < p.size(); ++q) p.x[q] = x[ord.order[q]];  // in cell order
-      // Move some particles by a cell or more along an axis (or anywhere, at 3000).
       std::uniform_int_distribution<std::size_t> which(0, p.size() - 1);
       std::uniform_int_distribution<int> axis(0, 2), cells_by(-3, 3);
       std::uniform_real_distribution<double> anywhere(0.2, 0.8);
+      if (moved < 0)
+        for (Vec3& y : p.x) y = Vec3(anywhere(rng), anywhere(rng), anywhere(rng));
       for (int m = 0; m < moved; ++m) {
         Vec3& y = p.x[which(rng)];
-        if (moved == 3000) {
-          y = Vec3(anywhere(rng), anywhere(rng), anywhere(rng));
-        } else {
-          const int a = axis(rng);
-          y[a] = std::clamp(y[a] + cells_by(rng) * g.h[a], 0.2, 0.8);
-        }
+        const int a = axis(rng);
+        y[a] = std::clamp(y[a] + cells_by(rng) * g.h[a], 0.2, 0.8);
       }
       for (Kernel kernel : kAllKernels) {
         INFO("kernel " << static_cast<int>(kernel));
