@@ -1,14 +1,16 @@
 #include "engine/step/transfer.h"
 
-#include <omp.h>
-
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <span>
 #include <stdexcept>
 #include <utility>
+
+#include <omp.h>
 
 #include "engine/step/kernels.h"
 #include "engine/step/simd/transfer_simd.h"
@@ -117,7 +119,8 @@ void radix_sort(std::size_t cells, ParticleOrder& ord) {
   // particle order.
   std::uint32_t* src = nullptr;
   std::uint32_t* dst = passes % 2 ? ord.order.data() : tmp.data();
-  std::vector<std::uint32_t> at(std::size_t{1} << digit);
+  std::array<std::uint32_t, std::size_t{1} << 11> digits;  // on the stack: no allocation
+  const std::span<std::uint32_t> at(digits.data(), std::size_t{1} << digit);
   for (int pass = 0, shift = 0; pass < passes; ++pass, shift += digit) {
     const auto particle = [&](std::size_t j) {
       return src ? src[j] : static_cast<std::uint32_t>(j);
@@ -198,10 +201,10 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
   // where the count of particles before them is nearest above s n / slabs: the slabs of a
   // colour hold about the same number of particles, so threads finish a colour together.
   const auto start_of_plane = [&](int x) {  // particles in the planes before x
-    const auto key = static_cast<std::uint32_t>(static_cast<std::size_t>(x) * ext.y() * ext.z());
+    const std::uint32_t first = key(lo + Vec3i(x, 0, 0));
     return static_cast<std::size_t>(
         std::partition_point(ord.order.begin(), ord.order.end(),
-                             [&](std::uint32_t i) { return keys[i] < key; }) -
+                             [&](std::uint32_t i) { return keys[i] < first; }) -
         ord.order.begin());
   };
   const int width = slab_width(K);

@@ -1,8 +1,9 @@
 // Particle <-> grid transfers keep mass, linear momentum and (APIC) angular momentum.
+#include <catch2/catch.hpp>
+
 #include <omp.h>
 
 #include <algorithm>
-#include <catch2/catch.hpp>
 #include <random>
 #include <tuple>
 
