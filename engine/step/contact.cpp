@@ -42,44 +42,142 @@ struct ParticleRadius {
   }
 };
 
-/// Appends a contact for every particle that `hit(x, reach, out)` finds within `reach` of one
-/// wall (its radius bound plus `travel`, the farthest it can close on the wall in a substep),
-/// in particle order whatever the thread count (each thread scans one contiguous chunk, and
-/// the chunks are joined in order).
-template <class Hit>
-void find_contacts(const ParticleRadius& radius, Real travel, Boundary b, Real friction,
-                   std::uint32_t wall, Hit&& hit, ContactState& st) {
-  const Particles& p = radius.p;
-  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
-  if (n == 0) return;
-  const int threads = n >= kParallelMinItems ? omp_get_max_threads() : 1;
-  const Real farthest =
-      kRestDepthCap * *std::max_element(radius.half_spacing.begin(), radius.half_spacing.end()) +
-      travel;
-  std::vector<std::vector<std::pair<std::uint32_t, WallHit>>> found(threads);
-#pragma omp parallel num_threads(threads)
-  {
-    auto& mine = found[omp_get_thread_num()];
-#pragma omp for schedule(static)
-    for (std::ptrdiff_t q = 0; q < n; ++q) {
-      WallHit h;
-      if (hit(p.x[q], farthest, h) && h.distance < radius.most(q) + travel)
-        mine.emplace_back(static_cast<std::uint32_t>(q), h);
+/// How fast the grid can close a gap near a point: the fastest node with mass of each storage
+/// block, so that a particle still a gap away from a wall is dropped where every node of its
+/// stencil is slower than that gap over the substep (gather_stencils would drop it too: the
+/// velocity at its contact point is a mean of those nodes').
+struct GridSpeed {
+  const Grid& g;            ///< The grid.
+  std::vector<Real> block;  ///< Per storage slot, its fastest node's speed, m/s.
+
+  /// The block speeds of `grid`, in parallel over its blocks.
+  explicit GridSpeed(const Grid& grid) : g(grid), block(grid.active_blocks(), 0) {
+    const std::ptrdiff_t nb = static_cast<std::ptrdiff_t>(block.size());
+#pragma omp parallel for schedule(static) if (nb * Grid::kBlockNodes >= kParallelMinItems)
+    for (std::ptrdiff_t b = 0; b < nb; ++b) {
+      Real fastest = 0;
+      for (std::ptrdiff_t i = b * Grid::kBlockNodes; i < (b + 1) * Grid::kBlockNodes; ++i)
+        if (g.mass[i] > 0) fastest = std::max(fastest, g.velocity[i].squaredNorm());
+      block[b] = std::sqrt(fastest);
     }
   }
-  const std::size_t objects = radius.half_spacing.size();
-  for (const auto& chunk : found)
-    for (const auto& [q, h] : chunk) {
-      st.particle.push_back(q);
-      st.id.push_back(p.id[q]);
-      st.point.push_back(p.x[q] - h.distance * h.normal);
-      st.normal.push_back(h.normal);
-      st.wall_velocity.push_back(h.velocity);
-      st.gap.push_back(h.distance - radius.along(q, h.normal));
-      st.boundary.push_back(b);
-      st.friction.push_back(friction);
-      st.patch.push_back(wall * static_cast<std::uint32_t>(objects) + p.object[q]);
+  /// The fastest speed over every node within two cells of `x` (any kernel's stencil of a
+  /// point there), m/s: the blocks those nodes lie in (at most two per axis).
+  Real near(const Vec3& x) const {
+    const Vec3 f = (x - g.origin).cwiseProduct(g.inv_h);
+    Vec3i lo, hi;
+    for (int a = 0; a < 3; ++a) {
+      const int cell = static_cast<int>(std::floor(f[a]));
+      lo[a] = std::max(cell - 1, 0) >> Grid::kBlockBits;
+      hi[a] = std::min(cell + 2, g.nodes[a] - 1) >> Grid::kBlockBits;
+      if (lo[a] > hi[a]) return 0;  // wholly outside the grid: no nodes
     }
+    Real fastest = 0;
+    for (int i = lo.x(); i <= hi.x(); ++i)
+      for (int j = lo.y(); j <= hi.y(); ++j)
+        for (int k = lo.z(); k <= hi.z(); ++k) {
+          const std::int32_t s = g.slot[g.page(i, j, k)];
+          if (s >= 0) fastest = std::max(fastest, block[s]);
+        }
+    return fastest;
+  }
+};
+
+/// A wall as the contact search takes it: its condition and how far a particle can close on
+/// it within a substep.
+struct WallReach {
+  Boundary boundary;  ///< The wall's condition.
+  Real friction;      ///< Its Coulomb coefficient.
+  Real travel;        ///< The farthest a particle's contact point can close on it, m.
+};
+
+/// A particle that `hit` found within reach of a wall, before it is appended to the contacts.
+struct Candidate {
+  std::uint32_t particle;  ///< The particle.
+  std::uint32_t wall;      ///< The wall, in `walls` order.
+  WallHit hit;             ///< The wall at the particle.
+  Real gap;                ///< Distance less the particle's radius, m.
+};
+
+/// Appends a contact for every particle and wall w (index `first_wall` + w) that `scan` finds
+/// within reach (the particle's radius bound plus the wall's travel) and that can act:
+/// touching, or closing its gap within the substep of `dt` as fast as the grid near its
+/// contact point allows (`speed`). `scan(first, last, reach, keep)` tests particles [first,
+/// last) against every wall, calling `keep(q, w, hit)` for each within `reach[w]` of wall w.
+/// The contacts are appended wall by wall, each in particle order, whatever the thread count
+/// (each thread scans one contiguous chunk, and the chunks are joined in order).
+template <class Scan>
+void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt,
+                   const std::vector<WallReach>& walls, std::uint32_t first_wall, Scan&& scan,
+                   ContactState& st) {
+  const Particles& p = radius.p;
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
+  if (n == 0 || walls.empty()) return;
+  const int threads = n >= kParallelMinItems ? omp_get_max_threads() : 1;
+  const Real widest =
+      kRestDepthCap * *std::max_element(radius.half_spacing.begin(), radius.half_spacing.end());
+  std::vector<Real> reach(walls.size());
+  for (std::size_t w = 0; w < walls.size(); ++w) reach[w] = widest + walls[w].travel;
+  std::vector<std::vector<Candidate>> found(threads);
+#pragma omp parallel num_threads(threads)
+  {
+    const int t = omp_get_thread_num();
+    auto& mine = found[t];
+    scan(n * t / threads, n * (t + 1) / threads, reach,
+         [&](std::ptrdiff_t q, std::uint32_t w, const WallHit& h) {
+           if (h.distance >= radius.most(q) + walls[w].travel) return;
+           const Real gap = h.distance - radius.along(q, h.normal);
+           const Vec3 point = p.x[q] - h.distance * h.normal;
+           if (gap > 0 && dt * (speed.near(point) + h.velocity.norm()) <= gap) return;
+           mine.push_back({static_cast<std::uint32_t>(q), w, h, gap});
+         });
+  }
+  const std::size_t objects = radius.half_spacing.size();
+  for (std::uint32_t w = 0; w < walls.size(); ++w)
+    for (const auto& chunk : found)
+      for (const Candidate& c : chunk) {
+        if (c.wall != w) continue;
+        const std::uint32_t q = c.particle;
+        st.particle.push_back(q);
+        st.id.push_back(p.id[q]);
+        st.point.push_back(p.x[q] - c.hit.distance * c.hit.normal);
+        st.normal.push_back(c.hit.normal);
+        st.wall_velocity.push_back(c.hit.velocity);
+        st.gap.push_back(c.gap);
+        st.boundary.push_back(walls[w].boundary);
+        st.friction.push_back(walls[w].friction);
+        st.patch.push_back((first_wall + w) * static_cast<std::uint32_t>(objects) + p.object[q]);
+      }
+}
+
+/// Scans particles [first, last) of `x` against the planes of normals `normal` through
+/// `point`, moving at `velocity`, calling `keep(q, w, hit)` for each particle q within
+/// `reach[w]` of plane w. The particles go in tiles that stay in cache, each plane's
+/// distances in one tight loop.
+template <class Keep>
+void scan_planes(const std::vector<Vec3>& x, const std::vector<Vec3>& normal,
+                 const std::vector<Vec3>& point, const std::vector<Vec3>& velocity,
+                 std::ptrdiff_t first, std::ptrdiff_t last, const std::vector<Real>& reach,
+                 Keep&& keep) {
+  constexpr std::ptrdiff_t kTile = 256;
+  Real distance[kTile];
+  for (std::ptrdiff_t tile = first; tile < last; tile += kTile) {
+    const std::ptrdiff_t m = std::min(kTile, last - tile);
+    const Vec3* xt = &x[tile];
+    for (std::size_t w = 0; w < normal.size(); ++w) {
+      const Vec3 n = normal[w];
+      const Real c = n.dot(point[w]), r = reach[w];
+      bool any = false;
+      for (std::ptrdiff_t i = 0; i < m; ++i) {
+        distance[i] = xt[i].dot(n) - c;
+        any |= distance[i] < r;
+      }
+      if (!any) continue;
+      for (std::ptrdiff_t i = 0; i < m; ++i)
+        if (distance[i] < r)
+          keep(tile + i, static_cast<std::uint32_t>(w), WallHit{distance[i], n, velocity[w]});
+    }
+  }
 }
 
 /// The normal part of the accumulated impulse of contact c after one projected Jacobi step,
@@ -756,28 +854,27 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
   // interpolated from its nodes (keep_acting_contacts), a mean of node velocities: no farther
   // than dt times the fastest node plus the wall's speed, and never a cell.
   const Real cell = g.h.maxCoeff();
-  const std::ptrdiff_t slots = static_cast<std::ptrdiff_t>(g.mass.size());
-  Real fastest = 0;
-#pragma omp parallel for schedule(static) reduction(max : fastest) if (slots >= kParallelMinItems)
-  for (std::ptrdiff_t i = 0; i < slots; ++i)
-    if (g.mass[i] > 0) fastest = std::max(fastest, g.velocity[i].squaredNorm());
-  fastest = std::sqrt(fastest);
+  const GridSpeed speed(g);
+  const Real fastest =
+      speed.block.empty() ? Real(0) : *std::max_element(speed.block.begin(), speed.block.end());
   const auto travel = [&](Real wall_speed) { return std::min(cell, dt * (fastest + wall_speed)); };
   const ParticleRadius particle_radius{p, radius, st.rest_depth};
-  std::uint32_t wall = 0;
+  // The planes, in one pass over the particles.
+  std::vector<WallReach> reach;
+  std::vector<Vec3> normals, points, velocities;
   for (const WallPlane& w : planes) {
-    const Vec3 point = w.point + w.offset(time);
-    const Vec3 velocity = w.velocity_at(time + dt);
-    find_contacts(
-        particle_radius, travel(velocity.norm()), w.boundary, w.friction, wall++,
-        [&](const Vec3& x, Real reach, WallHit& h) {
-          const Real d = (x - point).dot(w.normal);
-          if (d >= reach) return false;
-          h = {d, w.normal, velocity};
-          return true;
-        },
-        st);
+    normals.push_back(w.normal);
+    points.push_back(w.point + w.offset(time));
+    velocities.push_back(w.velocity_at(time + dt));
+    reach.push_back({w.boundary, w.friction, travel(velocities.back().norm())});
   }
+  find_contacts(
+      particle_radius, speed, dt, reach, 0,
+      [&](std::ptrdiff_t first, std::ptrdiff_t last, const std::vector<Real>& most, auto&& keep) {
+        scan_planes(p.x, normals, points, velocities, first, last, most, keep);
+      },
+      st);
+  std::uint32_t wall = static_cast<std::uint32_t>(planes.size());
   for (const Collider& c : colliders) {
     // A collider's speed varies over it: its particles' reach stays a cell.
     const ColliderPose now = c.pose(time), next = c.pose(time + dt);
@@ -786,15 +883,17 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
                        : kRestDepthCap * *std::max_element(radius.begin(), radius.end()) + cell);
     const Eigen::AlignedBox<Real, 3> near(now.bounds.min() - margin, now.bounds.max() + margin);
     find_contacts(
-        particle_radius, cell, c.boundary, c.friction, wall++,
-        [&](const Vec3& x, Real reach, WallHit& h) {
-          if (!near.contains(x)) return false;
-          const Vec3 x0 = now.to_rest(x);
-          if (c.phi(x0) >= reach) return false;  // the normal only where needed
-          const SdfSample s = c.sample(x0);
-          if (s.normal.squaredNorm() == 0) return false;
-          h = {s.phi, now.rotation * s.normal, next.velocity_at(x)};
-          return true;
+        particle_radius, speed, dt, {{c.boundary, c.friction, cell}}, wall++,
+        [&](std::ptrdiff_t first, std::ptrdiff_t last, const std::vector<Real>& most, auto&& keep) {
+          for (std::ptrdiff_t q = first; q < last; ++q) {
+            const Vec3& x = p.x[q];
+            if (!near.contains(x)) continue;
+            const Vec3 x0 = now.to_rest(x);
+            if (c.phi(x0) >= most[0]) continue;  // the normal only where needed
+            const SdfSample s = c.sample(x0);
+            if (s.normal.squaredNorm() == 0) continue;
+            keep(q, 0, WallHit{s.phi, now.rotation * s.normal, next.velocity_at(x)});
+          }
         },
         st);
   }
