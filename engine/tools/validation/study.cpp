@@ -229,6 +229,10 @@ const std::vector<Experiment>& experiments() {
          offset_sweep({1}, {"particles"})},
         {"offset_rolling", "rolling_ball", offset_sweep({1, 2}, {"nodes", "particles"}),
          offset_sweep({1}, {"particles"})},
+        // The blocks at h / 4 with contact at the particles (about 2 minutes a run on two
+        // threads): kept apart so that the sweeps above stay short.
+        {"offset_sliding_h4", "wide_sliding_block", offset_sweep({4}, {"particles"}), {}},
+        {"offset_sticking_h4", "wide_sticking_block", offset_sweep({4}, {"particles"}), {}},
         {"offset_water", "hydrostatic_water", offset_sweep({1}, {"nodes", "particles"}),
          offset_sweep({1}, {"particles"})},
         // sand_slope's side walls lie on its buffer's edge: a cell of margin lets them move.
