@@ -269,7 +269,7 @@ void ghost_weights(const Stencil<KernelTraits<K>::kNodes>& s, const Vec3& point,
 }
 
 /// A stencil node that takes no part in a contact (outside the grid, unallocated or massless).
-constexpr std::size_t kNoNode = ~std::size_t{0};
+constexpr std::size_t kNoNode = Grid::kNoStorage;
 
 /// Copies contact `from`'s per-contact fields (not its stencil) over contact `to`'s.
 void copy_contact(ContactState& st, std::size_t from, std::size_t to) {
@@ -368,46 +368,6 @@ void compact_nodes(const Grid& g, const std::vector<std::size_t>& storage_index,
   }
 }
 
-/// The storage indices of the N^3 nodes of the stencil from `base` (k fastest), kNoNode for
-/// those outside the grid, in blocks without storage, or without mass: one page-table lookup
-/// per block the stencil reaches (at most two per axis), not one per node.
-template <int N>
-void stencil_storage(const Grid& g, const Vec3i& base, std::size_t* at) {
-  constexpr int B = Grid::kBlockBits, m = Grid::kBlockEdge - 1;
-  const Vec3i b0(base.x() >> B, base.y() >> B, base.z() >> B);
-  int blk[3][N], off[3][N];
-  bool inside[3][N];
-  for (int a = 0; a < 3; ++a)
-    for (int t = 0; t < N; ++t) {
-      const int n = base[a] + t;
-      blk[a][t] = (n >> B) - b0[a];
-      off[a][t] = n & m;
-      inside[a][t] = n >= 0 && n < g.nodes[a];
-    }
-  std::int32_t slot[2][2][2];
-  for (int di = 0; di < 2; ++di)
-    for (int dj = 0; dj < 2; ++dj)
-      for (int dk = 0; dk < 2; ++dk) {
-        const Vec3i b = b0 + Vec3i(di, dj, dk);
-        slot[di][dj][dk] = (b.array() >= 0).all() && (b.array() < g.blocks.array()).all()
-                               ? g.slot[g.page(b.x(), b.y(), b.z())]
-                               : -1;
-      }
-  int t = 0;
-  for (int i = 0; i < N; ++i)
-    for (int j = 0; j < N; ++j)
-      for (int k = 0; k < N; ++k, ++t) {
-        const std::int32_t s = slot[blk[0][i]][blk[1][j]][blk[2][k]];
-        if (!inside[0][i] || !inside[1][j] || !inside[2][k] || s < 0) {
-          at[t] = kNoNode;
-          continue;
-        }
-        const std::size_t idx = static_cast<std::size_t>(s) * Grid::kBlockNodes +
-                                Grid::block_offset(off[0][i], off[1][j], off[2][k]);
-        at[t] = g.mass[idx] > 0 ? idx : kNoNode;
-      }
-}
-
 /// The contacts' stencils (weights, grid storage indices), then compact node indices in
 /// first-touch order with each node's velocity, inverse mass and key.
 template <int N>
@@ -437,12 +397,14 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
         // mean of the nodes'): keep_acting_contacts would drop it, so its weights are not
         // worth finding.
         Real closing = 0;
-        stencil_storage<N>(g, s.base, at);
+        g.stencil_indices<N, true>(s.base, at);  // kNoStorage is kNoNode
         int t;
-        for (t = 0; t < S; ++t)
+        for (t = 0; t < S; ++t) {
+          if (at[t] != kNoNode && !(g.mass[at[t]] > 0)) at[t] = kNoNode;
           if (at[t] != kNoNode)
             closing =
                 std::max(closing, -(g.velocity[at[t]] - st.wall_velocity[c]).dot(st.normal[c]));
+        }
         if (st.gap[c] > 0 && closing * dt <= st.gap[c]) {
           std::fill(w, w + S, Real(0));
           return;

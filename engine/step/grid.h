@@ -53,35 +53,56 @@ struct Grid {
   std::size_t page(int bi, int bj, int bk) const {
     return (static_cast<std::size_t>(bi) * blocks.y() + bj) * blocks.z() + bk;
   }
-  /// Storage indices of the N^3 nodes from `base` (k fastest), whose blocks must be active:
-  /// one page-table lookup per block (at most two per axis), not one per node.
-  template <int N>
+  /// A stencil node with no storage (stencil_indices with kChecked).
+  static constexpr std::size_t kNoStorage = ~std::size_t{0};
+  /// Storage indices of the N^3 nodes from `base` (k fastest): one page-table lookup per
+  /// block (at most two per axis), not one per node. Unchecked, every block must be active;
+  /// with kChecked, nodes outside the grid or in blocks without storage get kNoStorage.
+  template <int N, bool kChecked = false>
   void stencil_indices(const Vec3i& base, std::size_t* out) const {
     static_assert(N <= kBlockEdge + 1, "a stencil spans at most two blocks per axis");
     constexpr int m = kBlockEdge - 1;
     const Vec3i b0(base.x() >> kBlockBits, base.y() >> kBlockBits, base.z() >> kBlockBits);
     int blk[3][N], off[3][N];
+    bool inside[3][N] = {};
     for (int a = 0; a < 3; ++a)
       for (int t = 0; t < N; ++t) {
         blk[a][t] = ((base[a] + t) >> kBlockBits) - b0[a];
         off[a][t] = (base[a] + t) & m;
+        if constexpr (kChecked) inside[a][t] = base[a] + t >= 0 && base[a] + t < nodes[a];
       }
     std::size_t first[2][2][2] = {};  // blocks the stencil does not reach stay 0, unused
     for (int di = 0; di <= blk[0][N - 1]; ++di)
       for (int dj = 0; dj <= blk[1][N - 1]; ++dj)
         for (int dk = 0; dk <= blk[2][N - 1]; ++dk) {
-          const std::int32_t s = slot[page(b0.x() + di, b0.y() + dj, b0.z() + dk)];
-          assert(s >= 0 && "the sort activates every block a stencil touches");
-          first[di][dj][dk] = static_cast<std::size_t>(s) * kBlockNodes;
+          const Vec3i b = b0 + Vec3i(di, dj, dk);
+          if constexpr (kChecked) {
+            const bool in = (b.array() >= 0).all() && (b.array() < blocks.array()).all();
+            const std::int32_t s = in ? slot[page(b.x(), b.y(), b.z())] : -1;
+            first[di][dj][dk] = s < 0 ? kNoStorage : static_cast<std::size_t>(s) * kBlockNodes;
+          } else {
+            const std::int32_t s = slot[page(b.x(), b.y(), b.z())];
+            assert(s >= 0 && "the sort activates every block a stencil touches");
+            first[di][dj][dk] = static_cast<std::size_t>(s) * kBlockNodes;
+          }
         }
     // Each (i, j) row's start in its two z blocks, then one add per node.
     int c = 0;
     for (int i = 0; i < N; ++i)
       for (int j = 0; j < N; ++j) {
         const std::size_t xy = block_offset(off[0][i], off[1][j], 0);
-        const std::size_t row[2] = {first[blk[0][i]][blk[1][j]][0] + xy,
-                                    first[blk[0][i]][blk[1][j]][1] + xy};
-        for (int k = 0; k < N; ++k) out[c++] = row[blk[2][k]] + off[2][k];
+        const std::size_t* f = first[blk[0][i]][blk[1][j]];
+        if constexpr (kChecked) {
+          for (int k = 0; k < N; ++k, ++c) {
+            const std::size_t start = f[blk[2][k]];
+            out[c] = !inside[0][i] || !inside[1][j] || !inside[2][k] || start == kNoStorage
+                         ? kNoStorage
+                         : start + xy + off[2][k];
+          }
+        } else {
+          const std::size_t row[2] = {f[0] + xy, f[1] + xy};
+          for (int k = 0; k < N; ++k) out[c++] = row[blk[2][k]] + off[2][k];
+        }
       }
   }
   /// Storage index of node (i, j, k), whose block must be active.
