@@ -62,6 +62,10 @@ SimulationDesc read_simulation(ParamReader r) {
   s.simd = r.get_or("simd", s.simd);
   s.contact = read_choice<Contact>(r, "contact",
                                    {{"nodes", Contact::nodes}, {"particles", Contact::particles}});
+  s.contact_iterations = r.get_or("contact_iterations", s.contact_iterations);
+  r.check_range("contact_iterations", s.contact_iterations, 1, 1e6);
+  s.contact_spectral_radius = r.get_or("contact_spectral_radius", s.contact_spectral_radius);
+  r.check_range("contact_spectral_radius", s.contact_spectral_radius, 0, 0.999);
   if (s.transfer == Transfer::mls && s.kernel == Kernel::linear)
     r.fail("transfer", "transfer 'mls' needs kernel quadratic or cubic (its D is not constant "
                        "for the linear kernel)");

@@ -197,6 +197,15 @@ bool held(const ContactState& st, std::size_t c) {
   return st.gap[c] <= 0 && st.boundary[c] == Boundary::sticky;
 }
 
+/// How far the velocity `u` at touching contact c's point is from its normal condition, m/s
+/// (0 for a contact still a gap away): its normal velocity relative to the wall, into it, or
+/// either way where the contact pushes or is held.
+Real violation(const ContactState& st, std::size_t c, const Vec3& u) {
+  if (st.gap[c] > 0) return 0;
+  const Real off = (u - st.wall_velocity[c]).dot(st.normal[c]);
+  return held(st, c) || st.normal_impulse[c] > 0 ? std::abs(off) : std::max(-off, Real(0));
+}
+
 /// True where contact c takes part in friction: held, or on a wall with friction.
 bool rubs(const ContactState& st, std::size_t c) {
   return held(st, c) || st.friction[c] > 0;
@@ -642,6 +651,26 @@ Real warm_start(Real dt, const ContactMemory& memory, const Members& members, Co
   return work;
 }
 
+/// `f` shortened to at most `cap` long.
+Vec3 within(Real cap, const Vec3& f) {
+  const Real t = f.norm();
+  return t > cap ? (t > 0 ? Vec3(f * (cap / t)) : Vec3::Zero()) : f;
+}
+
+/// The weights of Chebyshev's semi-iteration (Wang 2015, eq. 12) for Jacobi steps of spectral
+/// radius `rho`: each iterate is omega (step - earlier) + earlier, from the iterate before the
+/// last (`earlier`) and the plain step from the last.
+struct Chebyshev {
+  Real rho;        ///< The spectral radius assumed (0: omega is always 1, plain steps).
+  Real omega = 1;  ///< The weight of the current iteration.
+
+  /// The weight of iteration `it` (called once per iteration, in order).
+  Real next(int it) {
+    omega = it == 0 ? 1 : it == 1 ? 2 / (2 - rho * rho) : 4 / (4 - rho * rho * omega);
+    return omega;
+  }
+};
+
 /// The friction at the nodes over one solve: each node's accumulated friction impulse, and the
 /// weights and weighted wall velocities of its rubbing contacts (which contacts rub does not
 /// change within a substep).
@@ -649,12 +678,14 @@ struct NodeFriction {
   std::vector<Vec3> friction;  ///< Accumulated friction impulse, N s.
   std::vector<Vec3> wall_v;    ///< Sum of the rubbing contacts' weights times wall velocities.
   std::vector<Real> rubbing;   ///< Sum of the rubbing contacts' weights.
+  std::vector<Vec3> earlier;   ///< The accumulated friction impulse an iteration before.
 
   /// No friction yet, at the nodes of `st`.
   explicit NodeFriction(const ContactState& st)
       : friction(st.node_velocity.size(), Vec3::Zero()),
         wall_v(st.node_velocity.size(), Vec3::Zero()),
-        rubbing(st.node_velocity.size(), 0) {
+        rubbing(st.node_velocity.size(), 0),
+        earlier(st.node_velocity.size(), Vec3::Zero()) {
     const int S = st.stencil;
     for (std::size_t c = 0; c < st.size(); ++c)
       if (!held(st, c) && rubs(st, c))
@@ -667,10 +698,11 @@ struct NodeFriction {
   }
 
   /// Adds the `chunks` chunks' `sums` at each node of `st` (in chunk order), keeps the
-  /// friction within its capacity, and changes the node velocities by the impulses; adds the
+  /// friction within its capacity, extrapolates it by the Chebyshev weight `omega` (and keeps
+  /// it within its capacity again), and changes the node velocities by the impulses; adds the
   /// moving walls' work of the friction to `work`. Returns the largest squared velocity change.
-  Real apply(const std::vector<NodeSums>& sums, std::ptrdiff_t chunks, bool par, ContactState& st,
-             Real& work) {
+  Real apply(const std::vector<NodeSums>& sums, std::ptrdiff_t chunks, bool par, Real omega,
+             ContactState& st, Real& work) {
     const std::size_t nn = st.node_velocity.size();
     const std::ptrdiff_t snn = static_cast<std::ptrdiff_t>(nn);
     Real node_work = 0, change = 0;
@@ -683,9 +715,10 @@ struct NodeFriction {
         total.trial += more.trial;
         total.cap += more.cap;
       }
-      Vec3 f = friction[i] + total.trial;
-      const Real t = f.norm();
-      if (t > total.cap) f = t > 0 ? Vec3(f * (total.cap / t)) : Vec3::Zero();
+      const Vec3 f =
+          within(total.cap,
+                 omega * (within(total.cap, friction[i] + total.trial) - earlier[i]) + earlier[i]);
+      earlier[i] = friction[i];
       const Vec3 df = f - friction[i];
       friction[i] = f;
       if (rubbing[i] > 0) node_work += df.dot(wall_v[i]) / rubbing[i];
@@ -697,6 +730,70 @@ struct NodeFriction {
     return change;
   }
 };
+
+/// One iteration's requests of every contact, and what Chebyshev's acceleration keeps of the
+/// iterations before: each contact's normal impulse an iteration before, and a held contact's
+/// accumulated tangential impulse now and an iteration before (the nodes keep their
+/// friction's, NodeFriction::earlier).
+struct ContactSteps {
+  std::vector<Real> ln;            ///< Normal impulses after this iteration, N s.
+  std::vector<Vec3> ask;           ///< Tangential requests (held: impulse changes), N s.
+  std::vector<Real> earlier;       ///< Normal impulses an iteration before, N s.
+  std::vector<Vec3> held_impulse;  ///< A held contact's tangential impulse, N s.
+  std::vector<Vec3> held_earlier;  ///< The same an iteration before, N s.
+
+  /// Nothing asked yet, from the warm-started impulses of `st`.
+  explicit ContactSteps(const ContactState& st)
+      : ln(st.size()),
+        ask(st.size()),
+        earlier(st.normal_impulse),
+        held_impulse(st.size(), Vec3::Zero()),
+        held_earlier(st.size(), Vec3::Zero()) {}
+
+  /// Each contact's projected Jacobi step from the velocities `u` at the contact points,
+  /// extrapolated by the Chebyshev weight `omega` from the iterate before the last and
+  /// projected again. Sets `residual` to the largest violation at `u` (violation); returns the
+  /// largest impulse change or request.
+  Real take(const ContactState& st, const std::vector<Vec3>& u, Real dt, Real omega, bool par,
+            Real& residual) {
+    const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(st.size());
+    Real largest = 0, worst = 0;
+#pragma omp parallel for schedule(static) reduction(max : largest, worst) if (par)
+    for (std::ptrdiff_t c = 0; c < sn; ++c) {
+      worst = std::max(worst, violation(st, c, u[c]));
+      const Real step = normal_impulse(st, c, u[c], dt);
+      const Real extrapolated = omega * (step - earlier[c]) + earlier[c];
+      ln[c] = held(st, c) ? extrapolated : std::max(extrapolated, Real(0));
+      earlier[c] = st.normal_impulse[c];
+      const Vec3& n = st.normal[c];
+      const Vec3 ur = u[c] - st.wall_velocity[c];
+      ask[c] = rubs(st, c) ? Vec3(-(ur - ur.dot(n) * n) * st.inv_k[c]) : Vec3::Zero();
+      if (held(st, c)) {  // its tangential impulse, accumulated, extrapolated alike
+        const Vec3 t = omega * (held_impulse[c] + ask[c] - held_earlier[c]) + held_earlier[c];
+        held_earlier[c] = held_impulse[c];
+        ask[c] = t - held_impulse[c];
+        held_impulse[c] = t;
+      }
+      largest = std::max({largest, std::abs(ln[c] - st.normal_impulse[c]), ask[c].norm()});
+    }
+    residual = worst;
+    return largest;
+  }
+};
+
+/// Keeps each particle's equal share of its merged contact's (`members`) normal impulse in
+/// `memory`, for the next substep's warm start.
+void keep_impulses(const Members& members, const ContactState& st, Real dt,
+                   ContactMemory& memory) {
+  std::vector<std::uint32_t> patch(members.id.size());
+  std::vector<Real> impulse(members.id.size());
+  for (std::size_t c = 0; c < st.size(); ++c)
+    for (std::uint32_t e = members.first[c]; e < members.first[c + 1]; ++e) {
+      patch[e] = st.patch[c];
+      impulse[e] = st.normal_impulse[c] / (members.first[c + 1] - members.first[c]);
+    }
+  memory.keep(members.id, patch, impulse, dt);
+}
 
 }  // namespace
 
@@ -736,8 +833,7 @@ Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
   // everywhere, the total is mu times the total normal impulse exactly. A touching particle
   // of a sticky wall is held directly.
   NodeFriction friction(st);
-  std::vector<Real> ln(nc);
-  std::vector<Vec3> ask(nc);
+  ContactSteps steps(st);
   std::vector<Real> load(st.patches), rubbers(st.patches);
   // The scatter runs in fixed chunks of the contacts, each into its own sums, added in chunk
   // order: the same sums on any thread count.
@@ -745,38 +841,29 @@ Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
   std::vector<NodeSums> sums(static_cast<std::size_t>(chunks) * nn);
   std::vector<Real> chunk_work(chunks);
   Real first_change = 0;
-  for (int it = 0; it < settings.iterations; ++it) {
+  Chebyshev chebyshev{settings.spectral_radius};
+  Real residual = 0;
+  int it = 0;
+  for (; it < settings.iterations; ++it) {
     if (it > 0) interpolate();
-    Real largest = 0;
-#pragma omp parallel for schedule(static) reduction(max : largest) if (par)
-    for (std::ptrdiff_t c = 0; c < sn; ++c) {
-      ln[c] = normal_impulse(st, c, u[c], dt);
-      const Vec3& n = st.normal[c];
-      const Vec3 ur = u[c] - st.wall_velocity[c];
-      ask[c] = rubs(st, c) ? Vec3(-(ur - ur.dot(n) * n) * st.inv_k[c]) : Vec3::Zero();
-      largest = std::max({largest, std::abs(ln[c] - st.normal_impulse[c]), ask[c].norm()});
-    }
+    const Real omega = chebyshev.next(it);
+    const Real largest = steps.take(st, u, dt, omega, par, residual);
     if (largest == 0) break;
-    patch_loads(st, ln, load, rubbers);
+    patch_loads(st, steps.ln, load, rubbers);
 #pragma omp parallel for schedule(static) if (par && chunks > 1)
     for (std::ptrdiff_t k = 0; k < chunks; ++k)
-      chunk_work[k] = scatter_chunk(st, ln, ask, load, rubbers, sn * k / chunks,
+      chunk_work[k] = scatter_chunk(st, steps.ln, steps.ask, load, rubbers, sn * k / chunks,
                                     sn * (k + 1) / chunks, &sums[k * nn]);
     for (const Real w : chunk_work) work += w;
-    const Real change = friction.apply(sums, chunks, par, st, work);
+    const Real change = friction.apply(sums, chunks, par, omega, st, work);
     // Converged when the velocity changes have fallen by the settings' factor.
     if (it == 0) first_change = change;
     if (change <= settings.tolerance * settings.tolerance * first_change) break;
   }
-  // Each particle keeps an equal share of its merged contact's impulse.
-  std::vector<std::uint32_t> patch(members.id.size());
-  std::vector<Real> impulse(members.id.size());
-  for (std::size_t c = 0; c < nc; ++c)
-    for (std::uint32_t e = members.first[c]; e < members.first[c + 1]; ++e) {
-      patch[e] = st.patch[c];
-      impulse[e] = st.normal_impulse[c] / (members.first[c + 1] - members.first[c]);
-    }
-  memory.keep(members.id, patch, impulse, dt);
+  memory.stats.solves += 1;
+  memory.stats.iterations += std::min(it + 1, settings.iterations);
+  memory.stats.residual += residual;
+  keep_impulses(members, st, dt, memory);
   return work;
 }
 

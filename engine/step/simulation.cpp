@@ -349,11 +349,14 @@ void Simulation::add_boundary_stages() {
   if (domain_)
     add_exchange("halo_velocity", [this](Real) { domain_->return_ghost_velocities(grid_); });
   // Walls and colliders act where the particles touch them (engine/step/contact.h).
+  const ContactSettings contact_settings{scene_.simulation.contact_iterations,
+                                         ContactSettings{}.tolerance,
+                                         scene_.simulation.contact_spectral_radius};
   if (!walls_.empty() || !colliders_.empty())
-    add_stage("contact", [this](Real dt) {
+    add_stage("contact", [this, contact_settings](Real dt) {
       const Kernel kernel = scene_.simulation.kernel;
       if (!domain_) {
-        wall_work_ += apply_contact(walls_, colliders_, ContactSettings{}, kernel, time_, dt,
+        wall_work_ += apply_contact(walls_, colliders_, contact_settings, kernel, time_, dt,
                                     particles_, grid_, contact_, contact_memory_);
         return;
       }
@@ -362,9 +365,9 @@ void Simulation::add_boundary_stages() {
   // The solve over every rank's contacts is collective: a rank whose stages failed takes
   // part with none.
   if (domain_ && (!walls_.empty() || !colliders_.empty()))
-    add_exchange("contact_solve", [this](Real dt) {
+    add_exchange("contact_solve", [this, contact_settings](Real dt) {
       if (!domain_->failure().empty()) contact_.clear();
-      wall_work_ += domain_->solve_contact(ContactSettings{}, dt, contact_, grid_, contact_memory_);
+      wall_work_ += domain_->solve_contact(contact_settings, dt, contact_, grid_, contact_memory_);
     });
   add_stage("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
 }

@@ -94,6 +94,13 @@ std::string case_names() {
 /// The scene `file` as `mpm run` runs it (`frames` frames, default all; its frames and
 /// summary written to a scratch folder, removed after), timed once over the whole run and
 /// reported as `name`; `simd`, when given, overrides its simulation.simd.
+/// Puts the mean contact solve of `stats` into `r` (none: zeros).
+void add_contact_stats(const ContactSolveStats& stats, BenchResult& r) {
+  if (stats.solves == 0) return;
+  r.contact_iterations = static_cast<double>(stats.iterations) / stats.solves;
+  r.contact_residual = stats.residual / stats.solves;
+}
+
 BenchResult run_whole_scene(const std::string& name, const std::filesystem::path& file,
                             const LoadOptions& load, std::optional<int> frames,
                             std::optional<bool> simd) {
@@ -131,6 +138,7 @@ BenchResult run_whole_scene(const std::string& name, const std::filesystem::path
     r.stage_ns.emplace_back(name, seconds * 1e9 / steps);
   r.stored_nodes = static_cast<long>(sim->grid().mass.size());
   r.peak_rss_bytes_per_particle = peak_rss_bytes() / r.particles;
+  add_contact_stats(sim->contact_memory().stats, r);
   return r;
 }
 
@@ -179,6 +187,7 @@ BenchResult run_case(const std::string& name, const BenchOptions& opt) {
     r.stage_ns.emplace_back(sim->stages()[i].name, stage_runs[mid][i]);
   r.stored_nodes = static_cast<long>(sim->grid().mass.size());
   r.peak_rss_bytes_per_particle = peak_rss_bytes() / r.particles;
+  add_contact_stats(sim->contact_memory().stats, r);
   return r;
 }
 
@@ -186,8 +195,8 @@ std::string serialize(const BenchResult& r) {
   std::ostringstream s;
   s.precision(17);
   s << r.name << ' ' << r.particles << ' ' << r.grid_nodes << ' ' << r.stored_nodes << ' '
-    << r.substeps << ' '
-    << r.threads << ' ' << r.particle_steps_per_second << ' ' << r.peak_rss_bytes_per_particle;
+    << r.substeps << ' ' << r.threads << ' ' << r.particle_steps_per_second << ' '
+    << r.peak_rss_bytes_per_particle << ' ' << r.contact_iterations << ' ' << r.contact_residual;
   for (const auto& [n, v] : r.stage_ns) s << ' ' << n << ' ' << v;
   return s.str();
 }
@@ -196,7 +205,8 @@ BenchResult deserialize(const std::string& text) {
   std::istringstream s(text);
   BenchResult r;
   s >> r.name >> r.particles >> r.grid_nodes >> r.stored_nodes >> r.substeps >> r.threads >>
-      r.particle_steps_per_second >> r.peak_rss_bytes_per_particle;
+      r.particle_steps_per_second >> r.peak_rss_bytes_per_particle >> r.contact_iterations >>
+      r.contact_residual;
   std::string n;
   double v;
   while (s >> n >> v) r.stage_ns.emplace_back(n, v);
@@ -256,6 +266,14 @@ std::string format_bench_table(const std::vector<BenchResult>& results) {
                   r.particle_steps_per_second / 1e6, r.peak_rss_bytes_per_particle);
     s << line;
   }
+  for (const BenchResult& r : results)
+    if (r.contact_iterations > 0) {
+      std::snprintf(line, sizeof line,
+                    "%s: contact solve, per substep with contacts: %.2f iterations, residual "
+                    "%.3g m/s\n",
+                    r.name.c_str(), r.contact_iterations, r.contact_residual);
+      s << line;
+    }
   s << "\nns per particle-step by stage\n";
   for (const BenchResult& r : results) {
     s << r.name << ":";

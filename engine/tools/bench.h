@@ -39,6 +39,8 @@ struct BenchResult {
   double particle_steps_per_second = 0;  ///< Median over repetitions.
   double peak_rss_bytes_per_particle = 0;  ///< Peak resident memory of the case / particles.
   std::vector<std::pair<std::string, double>> stage_ns;  ///< ns per particle-step per stage.
+  double contact_iterations = 0;  ///< Mean contact solve iterations per substep with contacts.
+  double contact_residual = 0;    ///< Their mean residual (ContactSolveStats), m/s.
 };
 
 /// Runs each case in its own child process (so peak memory is per case) and returns results.

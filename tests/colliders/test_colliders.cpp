@@ -156,6 +156,40 @@ TEST_CASE("a block slides down a tilted mesh ramp at g (sin a - mu cos a)", "[co
   }
 }
 
+TEST_CASE("contact at the particles: 12 accelerated iterations solve closer than 24 plain ones",
+          "[colliders][contact]") {
+  // A block dropped 2 cm onto a floor with friction, between the node rows, and a sticky
+  // wall it leans on: the solve's residual (the largest velocity into a wall, or off it where
+  // a contact pushes, at its last iteration), averaged over the substeps, with Chebyshev's
+  // acceleration at 12 iterations (the default) and plain projected Jacobi at 24.
+  const auto residual = [](int iterations, double rho) {
+    const std::string yaml =
+        "simulation:\n  frames: 4\n  frame_dt: 0.05\n  cfl: 0.4\n  dt: 1.0e-3\n"
+        "  contact: particles\n  contact_iterations: " +
+        std::to_string(iterations) +
+        "\n"
+        "  contact_spectral_radius: " +
+        std::to_string(rho) +
+        "\n"
+        "grid:\n  max: [0.5, 0.5, 0.5]\n  dims: 20\n"
+        "objects:\n  - name: block\n    mesh: meshes/cube.obj\n    scale: 0.1\n"
+        "    offset: [0.2, 0.1897, 0.25]\n    density: 1000\n    material: corotated\n"
+        "    E: 1.0e5\n    nu: 0.3\n    velocity: [0.5, 0, 0]\n"
+        "walls:\n  - plane: {point: [0, 0.1197, 0], normal: [0, 1, 0]}\n"
+        "    boundary: slip\n    friction: 0.3\n"
+        "  - plane: {point: [0.26, 0, 0], normal: [-1, 0, 0]}\n    boundary: sticky\n";
+    auto sim = Simulation::create(test::scene_from(yaml), builtin_registry());
+    REQUIRE(run_frames(*sim, 4, 0.05, {}).status == RunStatus::ok);
+    const ContactSolveStats& s = sim->contact_memory().stats;
+    REQUIRE(s.solves > 0);
+    for (const Vec3& x : sim->particles().x) REQUIRE(x.y() > 0.1197 - 0.5 * 0.025);
+    return s.residual / static_cast<double>(s.solves);
+  };
+  const double accelerated = residual(12, 0.95), plain = residual(24, 0);
+  INFO("mean residual: accelerated " << accelerated << " m/s, plain " << plain << " m/s");
+  CHECK(accelerated < plain);
+}
+
 TEST_CASE("a spinning collider carries sticky particles at w x (x - c)", "[colliders]") {
   // A thin block inside a larger box mesh that spins about z through its offset. Nodes inside
   // take the collider's velocity; a particle whose whole stencil is inside reads a linear
