@@ -152,8 +152,10 @@ void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt
 
 /// Scans particles [first, last) of `x` against the planes of normals `normal` through
 /// `point`, moving at `velocity`, calling `keep(q, w, hit)` for each particle q within
-/// `reach[w]` of plane w. The particles go in tiles that stay in cache, each plane's
-/// distances in one tight loop.
+/// `reach[w]` of plane w. The particles go in tiles that stay in cache: a plane that the
+/// tile's bounding box lies beyond the reach of is skipped (the particles lie in cell order
+/// after the reorder stage, so most tiles are small boxes far from every wall), and each other
+/// plane's distances are one tight loop.
 template <class Keep>
 void scan_planes(const std::vector<Vec3>& x, const std::vector<Vec3>& normal,
                  const std::vector<Vec3>& point, const std::vector<Vec3>& velocity,
@@ -164,9 +166,18 @@ void scan_planes(const std::vector<Vec3>& x, const std::vector<Vec3>& normal,
   for (std::ptrdiff_t tile = first; tile < last; tile += kTile) {
     const std::ptrdiff_t m = std::min(kTile, last - tile);
     const Vec3* xt = &x[tile];
+    Vec3 lo = xt[0], hi = xt[0];
+    for (std::ptrdiff_t i = 1; i < m; ++i) {
+      lo = lo.cwiseMin(xt[i]);
+      hi = hi.cwiseMax(xt[i]);
+    }
     for (std::size_t w = 0; w < normal.size(); ++w) {
       const Vec3 n = normal[w];
       const Real c = n.dot(point[w]), r = reach[w];
+      // The box's corner nearest the plane's back.
+      const Vec3 near((n.x() > 0 ? lo : hi).x(), (n.y() > 0 ? lo : hi).y(),
+                      (n.z() > 0 ? lo : hi).z());
+      if (near.dot(n) - c >= r) continue;
       bool any = false;
       for (std::ptrdiff_t i = 0; i < m; ++i) {
         distance[i] = xt[i].dot(n) - c;
