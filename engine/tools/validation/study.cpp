@@ -233,6 +233,7 @@ const std::vector<Experiment>& experiments() {
         // threads): kept apart so that the sweeps above stay short.
         {"offset_sliding_h4", "wide_sliding_block", offset_sweep({4}, {"particles"}), {}},
         {"offset_sticking_h4", "wide_sticking_block", offset_sweep({4}, {"particles"}), {}},
+        {"offset_rolling_h4", "rolling_ball", offset_sweep({4}, {"particles"}), {}},
         {"offset_water", "hydrostatic_water", offset_sweep({1}, {"nodes", "particles"}),
          offset_sweep({1}, {"particles"})},
         // sand_slope's side walls lie on its buffer's edge: a cell of margin lets them move.
