@@ -668,7 +668,7 @@ Vec3 within(Real cap, const Vec3& f) {
   return t > cap ? (t > 0 ? Vec3(f * (cap / t)) : Vec3::Zero()) : f;
 }
 
-/// The weights of Chebyshev's semi-iteration (Wang 2015, eq. 12) for Jacobi steps of spectral
+/// The weights of Chebyshev's semi-iteration (Wang 2015, contact.h) for Jacobi steps of spectral
 /// radius `rho`: each iterate is omega (step - earlier) + earlier, from the iterate before the
 /// last (`earlier`) and the plain step from the last.
 struct Chebyshev {

@@ -22,12 +22,12 @@
 /// by its row sum of W M^-1 W^T, so that a body pressing on a wall as a whole is solved in
 /// one iteration, accelerated by Chebyshev's semi-iteration (Wang 2015, "A Chebyshev
 /// semi-iterative approach for accelerating projective and position-based dynamics", ACM TOG
-/// 34(6), eq. 11, with the projections after each extrapolation), and warm-started from each
-/// particle's impulse of the last substep (ContactMemory). Friction is Coulomb's bound on the
-/// impulses gathered at the nodes, with the capacity (mu times the normal impulse) pooled over each
-/// wall and object (contact.cpp says why; docs/accuracy.md, "Walls between the node rows", what it
-/// measures). A particle still a gap g away is held back to -g / dt (speculative contacts, as in
-/// Jolt Physics), so nothing passes a wall between two substeps.
+/// 34(6), its recurrence of weights, with the projections after each extrapolation), and
+/// warm-started from each particle's impulse of the last substep (ContactMemory). Friction is
+/// Coulomb's bound on the impulses gathered at the nodes, with the capacity (mu times the normal
+/// impulse) pooled over each wall and object (contact.cpp says why; docs/accuracy.md, "Walls
+/// between the node rows", what it measures). A particle still a gap g away is held back to -g / dt
+/// (speculative contacts, as in Jolt Physics), so nothing passes a wall between two substeps.
 ///
 /// A particle's radius, where the gap is measured from, is half its spacing, except on the
 /// surface of an elastic body (one whose material has no plasticity, so it keeps its rest

@@ -91,9 +91,6 @@ std::string case_names() {
   return out + "sparse or two_cubes";
 }
 
-/// The scene `file` as `mpm run` runs it (`frames` frames, default all; its frames and
-/// summary written to a scratch folder, removed after), timed once over the whole run and
-/// reported as `name`; `simd`, when given, overrides its simulation.simd.
 /// Puts the mean contact solve of `stats` into `r` (none: zeros).
 void add_contact_stats(const ContactSolveStats& stats, BenchResult& r) {
   if (stats.solves == 0) return;
@@ -101,6 +98,9 @@ void add_contact_stats(const ContactSolveStats& stats, BenchResult& r) {
   r.contact_residual = stats.residual / stats.solves;
 }
 
+/// The scene `file` as `mpm run` runs it (`frames` frames, default all; its frames and
+/// summary written to a scratch folder, removed after), timed once over the whole run and
+/// reported as `name`; `simd`, when given, overrides its simulation.simd.
 BenchResult run_whole_scene(const std::string& name, const std::filesystem::path& file,
                             const LoadOptions& load, std::optional<int> frames,
                             std::optional<bool> simd) {
