@@ -313,27 +313,14 @@ void resize_contacts(ContactState& st, std::size_t n) {
   st.friction.resize(n);
 }
 
-/// Keeps only the contacts that act (st's arrays, the stencil weights and the grid storage
-/// indices `storage_index` of each contact's S nodes, kNoNode for none, compacted in order):
-/// touching, or closing their gap within the substep of `dt` at the velocity interpolated now
-/// (the solve's impulses only push particles away).
-void keep_acting_contacts(Real dt, const Grid& g, ContactState& st,
+/// Keeps only the contacts that act (`acts`; st's arrays, the stencil weights and the grid
+/// storage indices `storage_index` of each contact's S nodes compacted in order).
+void keep_acting_contacts(const std::vector<char>& acts, ContactState& st,
                           std::vector<std::size_t>& storage_index) {
   const int S = st.stencil;
-  const std::size_t nc = st.size();
   std::size_t kept = 0;
-  for (std::size_t c = 0; c < nc; ++c) {
-    Vec3 u = Vec3::Zero();
-    Real sum = 0;
-    for (int t = 0; t < S; ++t) {
-      const std::size_t at = storage_index[c * S + t];
-      if (at == kNoNode) continue;
-      u += st.weights[c * S + t] * g.velocity[at];
-      sum += st.weights[c * S + t];
-    }
-    if (sum == 0) continue;
-    if (!(st.gap[c] <= 0 || (u - st.wall_velocity[c]).dot(st.normal[c]) < -st.gap[c] / dt))
-      continue;
+  for (std::size_t c = 0; c < st.size(); ++c) {
+    if (!acts[c]) continue;
     copy_contact(st, c, kept);
     for (int t = 0; t < S; ++t) {
       st.weights[kept * S + t] = st.weights[c * S + t];
@@ -396,6 +383,7 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
   const std::size_t nc = st.size();
   const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(nc);
   std::vector<std::size_t> storage_index(nc * S);
+  std::vector<char> acts(nc, 0);
   st.stencil = S;
   st.weights.resize(nc * S);
   // Each object's particle spacing, for the ghost rows.
@@ -414,8 +402,7 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
         Real* w = &st.weights[c * S];
         // A particle still a gap away whose every node moves away from the wall, or closes
         // slower than the gap within the substep, cannot act (the interpolated velocity is a
-        // mean of the nodes'): keep_acting_contacts would drop it, so its weights are not
-        // worth finding.
+        // mean of the nodes'), so its weights are not worth finding.
         Real closing = 0;
         g.stencil_indices<N, true>(s.base, at);  // kNoStorage is kNoNode
         int t;
@@ -437,10 +424,21 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
           sum += w[t];
         }
         for (t = 0; t < S; ++t) w[t] = sum > 0 ? w[t] / sum : 0;
+        // It acts if touching, or closing its gap within the substep at the velocity
+        // interpolated now (the solve's impulses only push particles away).
+        Vec3 u = Vec3::Zero();
+        Real total = 0;
+        for (t = 0; t < S; ++t) {
+          if (at[t] == kNoNode) continue;
+          u += w[t] * g.velocity[at[t]];
+          total += w[t];
+        }
+        acts[c] = total != 0 &&
+                  (st.gap[c] <= 0 || (u - st.wall_velocity[c]).dot(st.normal[c]) < -st.gap[c] / dt);
       }
     });
   }
-  keep_acting_contacts(dt, g, st, storage_index);
+  keep_acting_contacts(acts, st, storage_index);
   compact_nodes(g, storage_index, st);
 }
 
