@@ -91,14 +91,16 @@ struct ContactMemory {
   std::unordered_map<std::uint64_t, Real> by_key_;  // (id << 32 | patch) -> impulse
 };
 
-/// Settings of the contact solve.
+/// Settings of the contact solve (the scene's defaults: simulation.contact_iterations and
+/// contact_spectral_radius).
 struct ContactSettings {
-  int iterations = 12;    ///< Most projected Jacobi iterations per substep.
+  /// Most projected Jacobi iterations per substep.
+  int iterations = SimulationDesc{}.contact_iterations;
   Real tolerance = 1e-3;  ///< Stop when the largest node velocity change falls by this factor.
   /// The spectral radius that Chebyshev's acceleration assumes of the Jacobi steps (0: none).
   /// Twelve accelerated iterations leave a smaller violation than 24 plain ones
   /// (docs/accuracy.md, "The contact solve, accelerated").
-  Real spectral_radius = 0.95;
+  Real spectral_radius = SimulationDesc{}.contact_spectral_radius;
 };
 
 /// The contact solve's per-substep state (kept between substeps so its buffers are reused).

@@ -349,9 +349,9 @@ void Simulation::add_boundary_stages() {
   if (domain_)
     add_exchange("halo_velocity", [this](Real) { domain_->return_ghost_velocities(grid_); });
   // Walls and colliders act where the particles touch them (engine/step/contact.h).
-  const ContactSettings contact_settings{scene_.simulation.contact_iterations,
-                                         ContactSettings{}.tolerance,
-                                         scene_.simulation.contact_spectral_radius};
+  const ContactSettings contact_settings{
+      .iterations = scene_.simulation.contact_iterations,
+      .spectral_radius = scene_.simulation.contact_spectral_radius};
   if (!walls_.empty() || !colliders_.empty())
     add_stage("contact", [this, contact_settings](Real dt) {
       const Kernel kernel = scene_.simulation.kernel;

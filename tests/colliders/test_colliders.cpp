@@ -182,7 +182,9 @@ TEST_CASE("contact at the particles: 12 accelerated iterations solve closer than
     REQUIRE(run_frames(*sim, 4, 0.05, {}).status == RunStatus::ok);
     const ContactSolveStats& s = sim->contact_memory().stats;
     REQUIRE(s.solves > 0);
-    for (const Vec3& x : sim->particles().x) REQUIRE(x.y() > 0.1197 - 0.5 * 0.025);
+    double lowest = 1;  // no particle sinks half a cell into the floor
+    for (const Vec3& x : sim->particles().x) lowest = std::min(lowest, x.y());
+    REQUIRE(lowest > 0.1197 - 0.5 * 0.025);
     return s.residual / static_cast<double>(s.solves);
   };
   const double accelerated = residual(12, 0.95), plain = residual(24, 0);
