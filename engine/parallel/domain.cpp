@@ -173,6 +173,9 @@ std::shared_ptr<Domain> Domain::create(const Simulation& sim) {
   const Grid& g = sim.grid();
   const int n = ranks();
   const Vec3i dims = sim.scene().grid.dims;
+  if (sim.scene().simulation.quadrature == Quadrature::domain)  // its fits read no ghosts
+    throw SceneError(sim.scene().simulation.quadrature_loc, "simulation.quadrature",
+                     "quadrature 'domain' runs on one rank; run without mpirun or use 'point'");
   int axis = 0;
   for (int a = 1; a < 3; ++a)
     if (dims[a] > dims[axis]) axis = a;

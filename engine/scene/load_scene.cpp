@@ -66,6 +66,13 @@ SimulationDesc read_simulation(ParamReader r) {
   r.check_range("contact_iterations", s.contact_iterations, 1, 1e6);
   s.contact_spectral_radius = r.get_or("contact_spectral_radius", s.contact_spectral_radius);
   r.check_range("contact_spectral_radius", s.contact_spectral_radius, 0, 0.999);
+  s.quadrature = read_choice<Quadrature>(
+      r, "quadrature", {{"point", Quadrature::point}, {"domain", Quadrature::domain}});
+  s.quadrature_loc = r.loc("quadrature");
+  if (s.quadrature == Quadrature::domain && s.kernel != Kernel::quadratic)
+    r.fail("quadrature",
+           "quadrature 'domain' integrates the quadratic B-spline: it needs "
+           "kernel quadratic");
   if (s.transfer == Transfer::mls && s.kernel == Kernel::linear)
     r.fail("transfer", "transfer 'mls' needs kernel quadratic or cubic (its D is not constant "
                        "for the linear kernel)");
@@ -354,6 +361,10 @@ SceneDesc read_scene(const YAML::Node& root, const std::filesystem::path& file,
   }
   scene.simulation = read_simulation(r.child("simulation"));
   scene.grid = read_grid(r.child("grid"));
+  if (scene.simulation.quadrature == Quadrature::domain && scene.grid.float_nodes)
+    throw SceneError(scene.simulation.quadrature_loc, "simulation.quadrature",
+                     "quadrature 'domain' keeps its node sums in double: it needs grid.precision "
+                     "double");
 
   const YAML::Node objects = r.sequence("objects");
   if (objects.size() == 0) r.fail("objects", "a scene needs at least one object");

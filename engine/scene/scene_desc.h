@@ -34,6 +34,12 @@ enum class Contact {
 };
 
 /// Time stepping and global physics.
+/// How the stress force is integrated (engine/step/domain_quadrature.h).
+enum class Quadrature {
+  point,   ///< At each particle, f_i = sum_p V_p sigma_p grad w_i(x_p).
+  domain,  ///< Over each particle's domain, with a linear pressure from nodal fits.
+};
+
 struct SimulationDesc {
   int frames = 120;                   ///< Frames written after the initial state.
   double frame_dt = 1.0 / 24.0;       ///< Seconds between frames.
@@ -51,6 +57,8 @@ struct SimulationDesc {
   int contact_iterations = 12;        ///< Most contact solve iterations per substep (particles).
   /// The spectral radius the contact solve's Chebyshev acceleration assumes (0: none).
   double contact_spectral_radius = 0.95;
+  Quadrature quadrature = Quadrature::point;  ///< How the stress force is integrated.
+  FileLoc quadrature_loc;                     ///< Where `quadrature` is written.
 };
 
 /// Where particles go inside each grid cell.

@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include "engine/core/hash.h"
+#include "engine/step/domain_quadrature.h"
 
 namespace mpm {
 
@@ -230,17 +231,21 @@ bool rubs(const ContactState& st, std::size_t c) {
 /// Summed with the body's own, that force vanishes at every node, so these are the boundary
 /// terms the particles' quadrature of the stress divergence calls for: a body at uniform
 /// pressure is in balance node by node wherever the wall lies between the node rows. The
-/// force is the stress scatter's: the kernel's gradient, or with MLS its D^-1 w (x_i - x)
-/// (Hu et al. 2018, eq. 29). With the wall on a node row and APIC these are the contact
+/// force is the stress scatter's: the kernel's gradient, with MLS its D^-1 w (x_i - x)
+/// (Hu et al. 2018, eq. 29), or the gradient averaged over each ghost's domain (a cube of
+/// the spacing, domain_quadrature.h). With the wall on a node row and APIC these are the contact
 /// point's own weights; nodes behind the wall that only a B-spline tail of the body reaches
 /// get little or none (docs/accuracy.md, "Walls between the node rows").
 template <Kernel K>
 void ghost_weights(const Stencil<KernelTraits<K>::kNodes>& s, const Vec3& point, const Vec3& n,
-                   Real spacing, bool mls, const Grid& g, Real* weights) {
+                   Real spacing, ContactState::ForceWeights kind, const Grid& g, Real* weights) {
+  using ForceWeights = ContactState::ForceWeights;
+  const bool mls = kind == ForceWeights::mls, domain = kind == ForceWeights::domain;
   constexpr int N = KernelTraits<K>::kNodes;
   std::fill(weights, weights + N * N * N, Real(0));
-  // Rows down to N cells behind the wall: beyond, a ghost reaches no node of the stencil.
-  const int rows = static_cast<int>(std::ceil(N * g.h.maxCoeff() / spacing));
+  // Rows down to N cells behind the wall (N + 1 with a ghost's domain): beyond, a ghost
+  // reaches no node of the stencil.
+  const int rows = static_cast<int>(std::ceil((N + domain) * g.h.maxCoeff() / spacing));
   const Vec3 inv_d = KernelTraits<K>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
   int axis;
   if (n.cwiseAbs().maxCoeff(&axis) == 1) {
@@ -251,6 +256,14 @@ void ghost_weights(const Stencil<KernelTraits<K>::kNodes>& s, const Vec3& point,
     for (int r = 0; r < rows; ++r) {
       const Real xg = point[axis] - (r + Real(0.5)) * spacing * side;
       const Real fx = (xg - g.origin[axis]) * inv_h;
+      if (domain) {
+        const DomainAxis d = domain_axis(fx, std::min(spacing * inv_h, Real(1)), h);
+        for (int k = 0; k < 4; ++k) {
+          const int rel = d.base + k - s.base[axis];
+          if (rel >= 0 && rel < N) along[rel] += spacing * side * d.s[k];
+        }
+        continue;
+      }
       const int base = KernelTraits<K>::base(fx);
       Real w[N], dw[N];
       KernelTraits<K>::weights(fx - base, w, dw);
@@ -272,6 +285,17 @@ void ghost_weights(const Stencil<KernelTraits<K>::kNodes>& s, const Vec3& point,
   }
   for (int r = 0; r < rows; ++r) {
     const Vec3 xg = point - (r + Real(0.5)) * spacing * n;
+    if (domain) {
+      const DomainStencil sd = domain_stencil(xg, spacing * spacing * spacing, g);
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j)
+          for (int k = 0; k < 4; ++k) {
+            const Vec3i rel = sd.base() + Vec3i(i, j, k) - s.base;
+            if ((rel.array() < 0).any() || (rel.array() >= N).any()) continue;
+            weights[(rel.x() * N + rel.y()) * N + rel.z()] += spacing * sd.gradient(i, j, k).dot(n);
+          }
+      continue;
+    }
     const auto sg = make_stencil<K>(xg, g.origin, g.inv_h);
     for (int i = 0; i < N; ++i)
       for (int j = 0; j < N; ++j)
@@ -417,7 +441,7 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
           return;
         }
         ghost_weights<K>(s, st.point[c], st.normal[c], spacing[p.object[st.particle[c]]],
-                         st.mls_quadrature, g, w);
+                         st.force_weights, g, w);
         Real sum = 0;
         for (t = 0; t < S; ++t) {
           w[t] = at[t] == kNoNode ? 0 : std::max(w[t], Real(0));

@@ -129,7 +129,12 @@ struct ContactState {
   std::vector<std::size_t> storage;     ///< Grid storage index of each compact node (node 0:
                                         ///< none, for stencil nodes without mass).
   std::vector<std::int32_t> compact;    ///< Scratch per grid storage slot, -1 between uses.
-  bool mls_quadrature = false;   ///< The stress scatter weighs by MLS's gradient (transfer mls).
+  /// The weights the stress scatter uses, which the ghost weights follow.
+  enum class ForceWeights {
+    gradient,  ///< The kernel's gradient (PIC, FLIP, APIC).
+    mls,       ///< MLS's D^-1 w (x_i - x_p) (transfer mls).
+    domain,    ///< The gradient averaged over the particle's domain (quadrature domain).
+  } force_weights = ForceWeights::gradient;
   std::vector<Real> rest_depth;  ///< By particle id: the depth below its elastic body's surface
                                  ///< at rest, m, or -1 (half the spacing); empty: all -1.
                                  ///< Set once at creation; clear() keeps it.

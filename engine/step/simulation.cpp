@@ -249,7 +249,12 @@ std::unique_ptr<Simulation> Simulation::create(const SceneDesc& scene,
     sim->objects_.push_back(info);
   }
   if (!sim->contact_.rest_depth.empty()) sim->contact_.rest_depth.resize(P.size(), -1);
-  sim->contact_.mls_quadrature = scene.simulation.transfer == Transfer::mls;
+  // The walls' ghost weights follow the stress scatter's weights.
+  using ForceWeights = ContactState::ForceWeights;
+  sim->contact_.force_weights =
+      scene.simulation.quadrature == Quadrature::domain ? ForceWeights::domain
+      : scene.simulation.transfer == Transfer::mls      ? ForceWeights::mls
+                                                        : ForceWeights::gradient;
   sim->walls_ = build_wall_planes(scene.walls);
   // Mesh level sets get voxels of half the cell size.
   sim->colliders_ = build_colliders(scene.walls, sim->grid_.h.minCoeff() / 2);
@@ -300,7 +305,8 @@ bool Simulation::add_stress_stage() {
   // stress array, no pass), or, where the scatter is scalar (FLIP), run as its own SIMD pass;
   // any other group runs its compute_stress into Particles::stress. The models themselves are
   // taken at each substep (lane_models): their state moves when particles migrate.
-  const bool fold = s.simd && simd::supports(s.transfer, s.kernel, grid_);
+  const bool fold =
+      s.simd && s.quadrature == Quadrature::point && simd::supports(s.transfer, s.kernel, grid_);
   const std::vector<BatchModel> models = lane_models();
   const bool any_lanes = std::any_of(models.begin(), models.end(), [](const BatchModel& b) {
     return b.kind != BatchModel::Kind::none;
@@ -372,22 +378,68 @@ void Simulation::add_boundary_stages() {
   add_stage("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
 }
 
+void Simulation::add_domain_scatter_stages() {
+  add_stage("fit_pressure", [this](Real) {
+    pressure_.resize(particles_.size());
+    pressure_gradient_.resize(particles_.size());
+    particle_pressures(particles_, pressure_);
+    fit_linear(particles_, order_, grid_, pressure_, fits_, {}, pressure_gradient_);
+  });
+  add_stage("particles_to_grid", [this](Real dt) {
+    domain_particles_to_grid(particles_, order_, scene_.simulation.transfer, pressure_gradient_, dt,
+                             grid_);
+  });
+}
+
+void Simulation::add_domain_gather_stages() {
+  // Each particle's volume change is replaced by the nodal fits' blend of it: MLS's C misses
+  // the hydrostatic strain's rate near a free surface, and with any transfer a pattern of
+  // particle pressures the nodes do not see would otherwise grow by the floor
+  // (docs/accuracy.md, "The pool's top layer, fixed").
+  add_stage("record_volume", [this](Real) {
+    j_old_.resize(particles_.size());
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(particles_.size());
+#pragma omp parallel for schedule(static) if (n >= kParallelMinItems)
+    for (std::ptrdiff_t q = 0; q < n; ++q) j_old_[q] = to_real(particles_.F[q]).determinant();
+  });
+  // Gathered at the positions the particles were sorted at (the fits' slabs), then advected.
+  add_stage("grid_to_particles", [this](Real dt) {
+    const SimulationDesc& sd = scene_.simulation;
+    domain_grid_to_particles(grid_, sd.transfer, sd.flip_blend, dt, particles_);
+  });
+  add_stage("smooth_volume_change", [this](Real) {
+    smooth_volume_change(order_, grid_, j_old_, fits_, fit_scratch_, particles_);
+  });
+  add_stage("advect", [this](Real dt) {
+    last_advect_ = advect_particles(dt, grid_, particles_);
+    clamped_total_ += last_advect_.clamped;
+  });
+}
+
 void Simulation::build_stages() {
   const SimulationDesc& s = scene_.simulation;
   stages_.clear();
-  add_stage("sort",
-            [this](Real) { sort_particles(particles_, scene_.simulation.kernel, grid_, order_); });
+  const bool domain_quadrature = s.quadrature == Quadrature::domain;
+  add_stage("sort", [this, domain_quadrature](Real) {
+    sort_particles(particles_, scene_.simulation.kernel, grid_, order_,
+                   domain_quadrature ? kDomainReach : 0);
+  });
   // With more than one rank: the previous rank's ghost blocks get storage here too.
   if (domain_) add_exchange("halo_blocks", [this](Real) { domain_->share_ghost_blocks(grid_); });
   const bool fold = add_stress_stage();
-  add_stage("particles_to_grid", [this, fold](Real dt) {
-    const SimulationDesc& sd = scene_.simulation;
-    particles_to_grid(particles_, order_, sd.transfer, sd.kernel, dt, grid_,
-                      sd.simd ? TransferPath::simd : TransferPath::scalar,
-                      fold ? lane_models() : std::vector<BatchModel>{});
-  });
-  // Between the transfers, where v and C are dead unless FLIP blends the old v.
-  if (s.reorder_every > 0)
+  if (domain_quadrature) {
+    add_domain_scatter_stages();
+  } else {
+    add_stage("particles_to_grid", [this, fold](Real dt) {
+      const SimulationDesc& sd = scene_.simulation;
+      particles_to_grid(particles_, order_, sd.transfer, sd.kernel, dt, grid_,
+                        sd.simd ? TransferPath::simd : TransferPath::scalar,
+                        fold ? lane_models() : std::vector<BatchModel>{});
+    });
+  }
+  // Between the transfers, where v and C are dead unless FLIP blends the old v. It spends the
+  // sorted order, which the domain quadrature's volume fits still need after the gather.
+  if (s.reorder_every > 0 && !domain_quadrature)
     add_stage("reorder", [this](Real) {
       if (substeps_ % scene_.simulation.reorder_every != 0) return;
       std::vector<ReorderRange> ranges;
@@ -408,12 +460,16 @@ void Simulation::build_stages() {
   // Advection runs inside the gather: on the SIMD path each lane set is advected while its x
   // and v are in cache (the plasticity stage below reads and writes only F and its own state,
   // so the order of the two does not matter).
-  add_stage("grid_to_particles", [this](Real dt) {
-    const SimulationDesc& sd = scene_.simulation;
-    grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_,
-                      sd.simd ? TransferPath::simd : TransferPath::scalar, &last_advect_);
-    clamped_total_ += last_advect_.clamped;
-  });
+  if (domain_quadrature) {
+    add_domain_gather_stages();
+  } else {
+    add_stage("grid_to_particles", [this](Real dt) {
+      const SimulationDesc& sd = scene_.simulation;
+      grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_,
+                        sd.simd ? TransferPath::simd : TransferPath::scalar, &last_advect_);
+      clamped_total_ += last_advect_.clamped;
+    });
+  }
   const bool plastic = std::any_of(materials_.begin(), materials_.end(),
                                    [](const auto& m) { return m.material->has_plasticity(); });
   if (plastic)

@@ -12,6 +12,7 @@
 #include "engine/scene/scene_desc.h"
 #include "engine/step/colliders.h"
 #include "engine/step/contact.h"
+#include "engine/step/domain_quadrature.h"
 #include "engine/step/exchange.h"
 #include "engine/step/grid.h"
 #include "engine/step/transfer.h"
@@ -166,6 +167,11 @@ class Simulation {
   std::vector<BatchModel> lane_models() const;
   /// Appends the stages of walls, colliders and the domain boundary (simulation.contact).
   void add_boundary_stages();
+  /// Appends the pressure fits and the scatter with the particles' domains.
+  void add_domain_scatter_stages();
+  /// Appends the gather with the particles' domains (MLS: its volume change smoothed), then
+  /// advection.
+  void add_domain_gather_stages();
 
   SceneDesc scene_;
   Particles particles_;
@@ -182,6 +188,11 @@ class Simulation {
   Real time_ = 0;
   std::size_t substeps_ = 0;
   AdvectStats last_advect_;
+  // simulation.quadrature: domain only (empty otherwise): the per-node fits, each particle's
+  // pressure and its gradient, det F before the F update, and the fits' scratch.
+  NodeFits fits_;
+  std::vector<Real> pressure_, j_old_, fit_scratch_;
+  std::vector<Vec3> pressure_gradient_;
   std::size_t clamped_total_ = 0;
   Real wall_work_ = 0;
   std::size_t state_ = 0;                        // bumped by every change of state

@@ -20,22 +20,27 @@ namespace mpm {
 namespace {
 
 /// Smallest slab width (cells along x) so that slabs two apart never write the same node: a
-/// particle whose stencil base lies in slab s, cells [X_s, X_s+1), writes nodes up to
-/// X_s+1 - 1 + (N - 1) < X_s+2 when X_s+2 - X_s+1 >= N - 1.
-int slab_width(Kernel k) { return std::max(2, kernel_nodes(k) - 1); }
+/// particle whose stencil base lies in slab s, cells [X_s, X_s+1), writes nodes from
+/// X_s - r to X_s+1 - 1 + (N - 1) + r < X_s+2 - r when X_s+2 - X_s+1 >= N - 1 + 2 r, with r
+/// the nodes a scatter reaches beyond the stencil on each side.
+int slab_width(Kernel k, int reach) {
+  return std::max(2, kernel_nodes(k) - 1 + 2 * reach);
+}
 
 /// Slabs per substep when the box is wide enough: an even number, so that each colour's
 /// slabs (kSlabs / 2 of about equal particle counts) share out evenly over 2, 4 or 8 threads.
 /// A constant, not the thread count, so the sums are the same for any count.
 constexpr int kSlabs = 16;
 
-/// The blocks holding the nodes of the stencil from `base`: the first block and the last
-/// (each at most one more per axis, Grid::stencil_indices).
+/// The blocks holding the nodes of the stencil from `base`, widened by `reach` nodes on each
+/// side: the first block and the last (each at most one more per axis,
+/// Grid::stencil_indices).
 template <Kernel K>
-std::pair<Vec3i, Vec3i> stencil_blocks(const Vec3i& base) {
+std::pair<Vec3i, Vec3i> stencil_blocks(const Vec3i& base, int reach) {
   constexpr int N = KernelTraits<K>::kNodes, B = Grid::kBlockBits;
-  const Vec3i last = base + Vec3i::Constant(N - 1);
-  return {Vec3i(base.x() >> B, base.y() >> B, base.z() >> B),
+  const Vec3i first = base - Vec3i::Constant(reach);
+  const Vec3i last = base + Vec3i::Constant(N - 1 + reach);
+  return {Vec3i(first.x() >> B, first.y() >> B, first.z() >> B),
           Vec3i(last.x() >> B, last.y() >> B, last.z() >> B)};
 }
 
@@ -57,7 +62,7 @@ void mark_blocks(const std::pair<Vec3i, Vec3i>& blocks, Grid& grid) {
 /// c go after those of the threads before it, so `order` is the serial sort's for any thread
 /// count.
 template <Kernel K, class KeyOf>
-void counting_sort(std::size_t cells, KeyOf&& key_of, ParticleOrder& ord, Grid& grid) {
+void counting_sort(std::size_t cells, KeyOf&& key_of, int reach, ParticleOrder& ord, Grid& grid) {
   const std::size_t n = ord.order.size();
   std::vector<std::uint32_t>& keys = ord.keys;
   std::vector<std::uint32_t>& at = ord.scratch;
@@ -100,7 +105,8 @@ void counting_sort(std::size_t cells, KeyOf&& key_of, ParticleOrder& ord, Grid& 
     std::size_t c = static_cast<std::size_t>(x) * ext.y() * ext.z();
     for (int y = 0; y < ext.y(); ++y)
       for (int z = 0; z < ext.z(); ++z, ++c)
-        if (start[c + 1] != start[c]) mark_blocks(stencil_blocks<K>(ord.lo + Vec3i(x, y, z)), grid);
+        if (start[c + 1] != start[c])
+          mark_blocks(stencil_blocks<K>(ord.lo + Vec3i(x, y, z), reach), grid);
   }
 }
 
@@ -141,7 +147,7 @@ void radix_sort(std::size_t cells, ParticleOrder& ord) {
 /// Sorts by the base cell of kernel K's stencil (dispatched once, not per particle), activates
 /// the blocks the stencils touch and places the slabs.
 template <Kernel K>
-void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
+void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord, int reach) {
   const std::size_t n = p.size();
   const Vec3 origin = grid.origin, inv_h = grid.inv_h;
   // Bounds of the stencil bases: the active nodes are [lo, hi + N - 1]. The base is a
@@ -173,7 +179,7 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
   keys.resize(n);
   grid.release_blocks();
   if (cells <= 2 * n) {
-    counting_sort<K>(cells, key_of, ord, grid);
+    counting_sort<K>(cells, key_of, reach, ord, grid);
   } else {
     // A box of more than two cells per particle (a body broken into dust): passes over the
     // cells would cost more than the particles. Each particle whose stencil's blocks differ
@@ -185,16 +191,17 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
       for (std::ptrdiff_t i = 0; i < count; ++i) {
         const Vec3i base = stencil_base<K>(p.x[i], origin, inv_h);
         keys[i] = key(base);
-        const std::pair<Vec3i, Vec3i> blocks = stencil_blocks<K>(base);
+        const std::pair<Vec3i, Vec3i> blocks = stencil_blocks<K>(base, reach);
         if (blocks != marked) mark_blocks(blocks, grid);
         marked = blocks;
       }
     }
     radix_sort(cells, ord);
   }
-  const Vec3i top = hi + Vec3i::Constant(KernelTraits<K>::kNodes - 1);
+  const Vec3i top = hi + Vec3i::Constant(KernelTraits<K>::kNodes - 1 + reach);
+  const Vec3i bottom = lo - Vec3i::Constant(reach);
   constexpr int B = Grid::kBlockBits;
-  grid.activate_blocks(Vec3i(lo.x() >> B, lo.y() >> B, lo.z() >> B),
+  grid.activate_blocks(Vec3i(bottom.x() >> B, bottom.y() >> B, bottom.z() >> B),
                        Vec3i(top.x() >> B, top.y() >> B, top.z() >> B));
 
   // Slab boundaries at x-planes of cells, each slab at least `width` planes thick, placed
@@ -207,7 +214,7 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
                              [&](std::uint32_t i) { return keys[i] < first; }) -
         ord.order.begin());
   };
-  const int width = slab_width(K);
+  const int width = slab_width(K, reach);
   const int slabs = std::max(1, std::min(kSlabs, ext.x() / width) & ~1);
   ord.slab_start.assign(1, 0);
   for (int s = 1, x = 0; s < slabs; ++s) {
@@ -222,7 +229,7 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord) {
 
 }  // namespace
 
-void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& ord) {
+void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& ord, int reach) {
   ord.order.resize(p.size());
   if (p.size() == 0) {
     grid.release_blocks();
@@ -230,7 +237,7 @@ void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder
     ord.slab_start.assign(1, 0);
     return;
   }
-  dispatch_kernel(kernel, [&]<Kernel K>() { sort_by_cell<K>(p, grid, ord); });
+  dispatch_kernel(kernel, [&]<Kernel K>() { sort_by_cell<K>(p, grid, ord, reach); });
 }
 
 namespace {
@@ -344,9 +351,7 @@ void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt, Grid& g)
 
 }  // namespace
 
-void particles_to_grid(const Particles& p, const ParticleOrder& ord, Transfer transfer,
-                       Kernel kernel, Real dt, Grid& g, TransferPath path,
-                       std::span<const BatchModel> fold) {
+void clear_node_sums(Grid& g) {
   // The node arrays hold exactly the active blocks; clear all of them, padding included (a
   // slot may have held another block before).
   const std::ptrdiff_t nodes = static_cast<std::ptrdiff_t>(g.mass.size());
@@ -356,6 +361,12 @@ void particles_to_grid(const Particles& p, const ParticleOrder& ord, Transfer tr
     g.velocity[i].setZero();
     if (g.flip) g.force[i].setZero();
   }
+}
+
+void particles_to_grid(const Particles& p, const ParticleOrder& ord, Transfer transfer,
+                       Kernel kernel, Real dt, Grid& g, TransferPath path,
+                       std::span<const BatchModel> fold) {
+  clear_node_sums(g);
   const bool simd_path = path == TransferPath::simd && simd::supports(transfer, kernel, g);
   if (simd_path) return simd::scatter(p, ord, transfer, kernel, dt, g, fold);
   if (!fold.empty())  // the caller did not compute these particles' stress

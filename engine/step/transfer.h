@@ -42,8 +42,13 @@ struct ParticleOrder {
 
 /// Sorts particles by the base cell of `kernel`'s stencil and activates the grid blocks their
 /// stencils touch (Grid::activate_blocks). Slabs are wide enough for the kernel (2 cells, 3
-/// for cubic).
-void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& order);
+/// for cubic). A scatter that reaches `reach` nodes beyond the stencil on each side (the
+/// particle domains', domain_quadrature.h) gets those nodes' blocks and wider slabs.
+void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& order,
+                    int reach = 0);
+
+/// Zeroes every stored node's mass and momentum (and FLIP's force) before a scatter.
+void clear_node_sums(Grid& grid);
 
 /// Which implementation runs the transfers: the double scalar reference, or float SIMD
 /// lanes (engine/step/simd/transfer_simd.h; FLIP always runs the scalar path).

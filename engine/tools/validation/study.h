@@ -33,6 +33,7 @@ struct Setting {
   /// sampled where they were (grid.sampling_origin).
   std::optional<double> wall_offset;
   std::optional<std::string> contact;  ///< simulation.contact: nodes or particles.
+  std::optional<std::string> quadrature;  ///< simulation.quadrature: point or domain.
   /// Cells added to the grid on every side, its node rows kept (so walls on the buffer's edge
   /// can move against them).
   std::optional<int> margin;
