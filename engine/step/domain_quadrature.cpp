@@ -180,7 +180,10 @@ DomainStencil domain_stencil(const Vec3& x, Real volume, const Grid& g) {
   DomainStencil d;
   const Real side = std::cbrt(std::max(volume, Real(0)));
   for (int a = 0; a < 3; ++a) {  // at most a cell wide: four nodes per axis
-    const Real cells = std::clamp(side * g.inv_h[a], Real(0.05), Real(1));
+    // A crushed, inverted or non-finite volume (a run going wrong) takes the narrowest domain,
+    // so the stencil stays on the grid until the run's checks stop it.
+    const Real wide = side * g.inv_h[a];
+    const Real cells = wide >= Real(0.05) ? std::min(wide, Real(1)) : Real(0.05);
     d.axis[a] = domain_axis((x[a] - g.origin[a]) * g.inv_h[a], cells, g.h[a]);
     const Real l = cells * g.h[a];
     d.inv_d[a] = 1 / (g.h[a] * g.h[a] / 4 + l * l / 12);
