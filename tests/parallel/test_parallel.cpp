@@ -297,6 +297,19 @@ TEST_CASE("more ranks than slabs: an error on rank 0 and exit 2 on every rank", 
   CHECK(log.find("grid.dims") != std::string::npos);
 }
 
+TEST_CASE("quadrature domain on two ranks: an error naming the key and exit 2", "[parallel]") {
+  const fs::path dir = test::temp_dir("parallel_domain_quadrature");
+  const std::string args =
+      "run " + (test::source_dir() / "scenes/validation/hydrostatic_water.yaml").string() +
+      " --set simulation.quadrature=domain --force --out " + (dir / "out").string();
+  const int code = run_mpm(2, args, dir / "log");
+  const std::string log = read_text(dir / "log");
+  INFO(log);
+  CHECK(code == 2);
+  CHECK(log.find("simulation.quadrature") != std::string::npos);
+  CHECK(log.find("runs on one rank") != std::string::npos);
+}
+
 /// Runs two_cubes (small) for 4 frames in one go on `whole_ranks`, and for 2 frames on
 /// `first_ranks` then resumed from its checkpoint to 4 on `second_ranks`; the frames agree.
 void check_resume(const std::string& name, int whole_ranks, int first_ranks, int second_ranks) {
