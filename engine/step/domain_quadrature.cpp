@@ -16,39 +16,55 @@ namespace {
 /// particles spread more widely (the 1D model's rule, scripts/pool_1d/schemes.py).
 constexpr Real kFitSpread = 1e-6;
 
-/// Runs f(q) for every particle in `order`, the even slabs at once and then the odd ones, so
-/// that two particles that run at once never write the same node.
+/// Runs f(begin, end) for every slab of `order` (its sorted particles order[begin, end)), the
+/// even slabs at once and then the odd ones, so that two particles that run at once never
+/// write the same node.
 template <class Fn>
-void for_each_by_slab(const ParticleOrder& order, Fn&& f) {
+void for_each_slab(const ParticleOrder& order, Fn&& f) {
   const int slabs = static_cast<int>(order.slab_start.size()) - 1;
   for (int color = 0; color < 2; ++color) {
 #pragma omp parallel for schedule(dynamic, 1) if (order.order.size() >= kParallelMinItems)
-    for (int s = color; s < slabs; s += 2)
-      for (std::size_t k = order.slab_start[s]; k < order.slab_start[s + 1]; ++k) f(order.order[k]);
+    for (int s = color; s < slabs; s += 2) f(order.slab_start[s], order.slab_start[s + 1]);
   }
 }
 
-/// Sums the moments of one particle into its 27 nodes: sum w, sum w d (3), sum w d d^T (6,
-/// xx yy zz xy xz yz), sum w v, sum w v d (3), with d = x_p - x_i.
-void add_moments(const Vec3& x, Real value, const Grid& g, NodeFits& fits) {
-  const auto s = quadratic_stencil(x, g.origin, g.inv_h);
-  std::size_t nodes[27];
-  g.stencil_indices<3>(s.base, nodes);
-  int c = 0;
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j)
-      for (int k = 0; k < 3; ++k, ++c) {
-        const Real w = s.weight(i, j, k);
-        const Vec3 d = x - g.position(s.base.x() + i, s.base.y() + j, s.base.z() + k);
-        auto& m = fits.sums[nodes[c]];
-        const Real wv = w * value;
-        m[0] += w;
-        m[1] += w * d.x(), m[2] += w * d.y(), m[3] += w * d.z();
-        m[4] += w * d.x() * d.x(), m[5] += w * d.y() * d.y(), m[6] += w * d.z() * d.z();
-        m[7] += w * d.x() * d.y(), m[8] += w * d.x() * d.z(), m[9] += w * d.y() * d.z();
-        m[10] += wv;
-        m[11] += wv * d.x(), m[12] += wv * d.y(), m[13] += wv * d.z();
-      }
+/// The moments of the particles order[begin, end) summed into their nodes: per node sum w,
+/// sum w d (3), sum w d d^T (6: xx yy zz xy xz yz), sum w v, sum w v d (3), d = x_p - x_i.
+/// The particles of one stencil cell are summed locally and written to their 27 nodes once.
+void add_moments(const Particles& p, std::span<const Real> values, const ParticleOrder& order,
+                 std::size_t begin, std::size_t end, const Grid& g, NodeFits& fits) {
+  for (std::size_t at = begin; at < end;) {
+    const std::uint32_t cell = order.keys[order.order[at]];
+    std::array<std::array<Real, 14>, 27> local{};
+    Vec3i base;
+    for (; at < end && order.keys[order.order[at]] == cell; ++at) {
+      const std::uint32_t q = order.order[at];
+      const auto s = quadratic_stencil(p.x[q], g.origin, g.inv_h);
+      base = s.base;
+      Real d[3][3];  // d[axis][node]: x_p - x_i along the axis
+      const Vec3 corner = p.x[q] - g.position(base.x(), base.y(), base.z());
+      for (int a = 0; a < 3; ++a)
+        for (int k = 0; k < 3; ++k) d[a][k] = corner[a] - k * g.h[a];
+      int c = 0;
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+          for (int k = 0; k < 3; ++k, ++c) {
+            const Real w = s.weight(i, j, k), x = d[0][i], y = d[1][j], z = d[2][k];
+            const Real wv = w * values[q];
+            auto& m = local[c];
+            m[0] += w;
+            m[1] += w * x, m[2] += w * y, m[3] += w * z;
+            m[4] += w * x * x, m[5] += w * y * y, m[6] += w * z * z;
+            m[7] += w * x * y, m[8] += w * x * z, m[9] += w * y * z;
+            m[10] += wv;
+            m[11] += wv * x, m[12] += wv * y, m[13] += wv * z;
+          }
+    }
+    std::size_t nodes[27];
+    g.stencil_indices<3>(base, nodes);
+    for (int c = 0; c < 27; ++c)
+      for (int e = 0; e < 14; ++e) fits.sums[nodes[c]][e] += local[c][e];
+  }
 }
 
 /// Solves one node's fit from its moments, in place: m[0..3] becomes (a, b). Returns whether
@@ -133,7 +149,9 @@ void fit_linear(const Particles& p, const ParticleOrder& order, const Grid& g,
                 std::span<Vec3> gradient) {
   fits.sums.assign(g.mass.size(), {});
   fits.ok.assign(g.mass.size(), 0);
-  for_each_by_slab(order, [&](std::uint32_t q) { add_moments(p.x[q], values[q], g, fits); });
+  for_each_slab(order, [&](std::size_t begin, std::size_t end) {
+    add_moments(p, values, order, begin, end, g, fits);
+  });
   Real heaviest = 0;
   for (const auto& m : fits.sums) heaviest = std::max(heaviest, m[0]);
   const Real h2 = g.h.minCoeff() * g.h.minCoeff();
@@ -191,49 +209,60 @@ DomainStencil domain_stencil(const Vec3& x, Real volume, const Grid& g) {
   return d;
 }
 
+namespace {
+
+/// Scatters particle q's mass, momentum and stress force (times `impulse`: dt, or 1 for FLIP's
+/// force array) with its domain weights (domain_particles_to_grid).
+void scatter_domain_particle(const Particles& p, std::uint32_t q, bool affine, Real impulse,
+                             std::span<const Vec3> pressure_gradient, Grid& g) {
+  const Real volume = p.volume0(q) * to_real(p.F[q]).determinant(), m = p.mass(q);
+  const DomainStencil d = domain_stencil(p.x[q], volume, g);
+  const DomainAxis &x = d.axis[0], &y = d.axis[1], &z = d.axis[2];
+  const Mat3 S = impulse * to_real(p.stress[q]);
+  const Vec3 G = impulse * volume * pressure_gradient[q];
+  // Momentum at node (i, j, k): w (m v + m C (x_i - x_p)) = w (a + i c0 + j c1 + k c2).
+  const Mat3 mC = affine ? Mat3(m * to_real(p.C[q])) : Mat3::Zero();
+  const Vec3 a = m * p.v[q] + mC * (g.position(x.base, y.base, z.base) - p.x[q]);
+  const Mat3 c = mC * g.h.asDiagonal();
+  std::size_t nodes[64];
+  g.stencil_indices<4>(d.base(), nodes);
+  // The force, -integral of sigma grad w_i over the domain with sigma = sigma_p -
+  // (G . (x - x_p)) I, is S grad + sum_a G_a T_a, T_ab = mean of (x_a - x_pa) dw_i / dx_b: a
+  // product of one mean per axis (m on the diagonal, q times s off it). Per (i, j) row it
+  // is nz[k] fn + sz[k] fs + qz[k] fq + mz[k] fm.
+  int c3 = 0;
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) {
+      const Real nn = x.n[i] * y.n[j], sn = x.s[i] * y.n[j], ns = x.n[i] * y.s[j];
+      const Vec3 fn = S.col(0) * sn + S.col(1) * ns +
+                      Vec3(G.x() * x.m[i] * y.n[j] + G.y() * x.s[i] * y.q[j],
+                           G.y() * x.n[i] * y.m[j] + G.x() * x.q[i] * y.s[j], 0);
+      const Vec3 fs = S.col(2) * nn + Vec3(0, 0, G.x() * x.q[i] * y.n[j] + G.y() * x.n[i] * y.q[j]);
+      const Vec3 fq(G.z() * sn, G.z() * ns, 0), fm(0, 0, G.z() * nn);
+      const Vec3 mom = a + i * c.col(0) + j * c.col(1);
+      for (int k = 0; k < 4; ++k, ++c3) {
+        const Real w = nn * z.n[k];
+        const Vec3 f = z.n[k] * fn + z.s[k] * fs + z.q[k] * fq + z.m[k] * fm;
+        g.mass[nodes[c3]] += w * m;
+        g.velocity[nodes[c3]] += w * (mom + k * c.col(2));
+        if (g.flip)
+          g.force[nodes[c3]] += f;
+        else
+          g.velocity[nodes[c3]] += f;
+      }
+    }
+}
+
+}  // namespace
+
 void domain_particles_to_grid(const Particles& p, const ParticleOrder& order, Transfer transfer,
                               std::span<const Vec3> pressure_gradient, Real dt, Grid& g) {
   clear_node_sums(g);
   const bool affine = transfer == Transfer::apic || transfer == Transfer::mls;
   const Real impulse = g.flip ? 1 : dt;  // FLIP keeps the force apart
-  for_each_by_slab(order, [&](std::uint32_t q) {
-    const Real volume = p.volume0(q) * to_real(p.F[q]).determinant(), m = p.mass(q);
-    const DomainStencil d = domain_stencil(p.x[q], volume, g);
-    const DomainAxis &x = d.axis[0], &y = d.axis[1], &z = d.axis[2];
-    const Mat3 S = impulse * to_real(p.stress[q]);
-    const Vec3 G = impulse * volume * pressure_gradient[q];
-    // Momentum at node (i, j, k): w (m v + m C (x_i - x_p)) = w (a + i c0 + j c1 + k c2).
-    const Mat3 mC = affine ? Mat3(m * to_real(p.C[q])) : Mat3::Zero();
-    const Vec3 a = m * p.v[q] + mC * (g.position(x.base, y.base, z.base) - p.x[q]);
-    const Mat3 c = mC * g.h.asDiagonal();
-    std::size_t nodes[64];
-    g.stencil_indices<4>(d.base(), nodes);
-    // The force, -integral of sigma grad w_i over the domain with sigma = sigma_p -
-    // (G . (x - x_p)) I, is S grad + sum_a G_a T_a, T_ab = mean of (x_a - x_pa) dw_i / dx_b: a
-    // product of one mean per axis (m on the diagonal, q times s off it). Per (i, j) row it
-    // is nz[k] fn + sz[k] fs + qz[k] fq + mz[k] fm.
-    int c3 = 0;
-    for (int i = 0; i < 4; ++i)
-      for (int j = 0; j < 4; ++j) {
-        const Real nn = x.n[i] * y.n[j], sn = x.s[i] * y.n[j], ns = x.n[i] * y.s[j];
-        const Vec3 fn = S.col(0) * sn + S.col(1) * ns +
-                        Vec3(G.x() * x.m[i] * y.n[j] + G.y() * x.s[i] * y.q[j],
-                             G.y() * x.n[i] * y.m[j] + G.x() * x.q[i] * y.s[j], 0);
-        const Vec3 fs =
-            S.col(2) * nn + Vec3(0, 0, G.x() * x.q[i] * y.n[j] + G.y() * x.n[i] * y.q[j]);
-        const Vec3 fq(G.z() * sn, G.z() * ns, 0), fm(0, 0, G.z() * nn);
-        const Vec3 mom = a + i * c.col(0) + j * c.col(1);
-        for (int k = 0; k < 4; ++k, ++c3) {
-          const Real w = nn * z.n[k];
-          const Vec3 f = z.n[k] * fn + z.s[k] * fs + z.q[k] * fq + z.m[k] * fm;
-          g.mass[nodes[c3]] += w * m;
-          g.velocity[nodes[c3]] += w * (mom + k * c.col(2));
-          if (g.flip)
-            g.force[nodes[c3]] += f;
-          else
-            g.velocity[nodes[c3]] += f;
-        }
-      }
+  for_each_slab(order, [&](std::size_t begin, std::size_t end) {
+    for (std::size_t at = begin; at < end; ++at)
+      scatter_domain_particle(p, order.order[at], affine, impulse, pressure_gradient, g);
   });
 }
 
