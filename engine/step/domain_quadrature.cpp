@@ -16,55 +16,43 @@ namespace {
 /// particles spread more widely (the 1D model's rule, scripts/pool_1d/schemes.py).
 constexpr Real kFitSpread = 1e-6;
 
-/// Runs f(begin, end) for every slab of `order` (its sorted particles order[begin, end)), the
-/// even slabs at once and then the odd ones, so that two particles that run at once never
-/// write the same node.
+/// Runs f(q) for every particle q in `order`, slab by slab: the even slabs at once and then
+/// the odd ones, so that two particles that run at once never write the same node.
 template <class Fn>
-void for_each_slab(const ParticleOrder& order, Fn&& f) {
+void for_each_by_slab(const ParticleOrder& order, Fn&& f) {
   const int slabs = static_cast<int>(order.slab_start.size()) - 1;
   for (int color = 0; color < 2; ++color) {
 #pragma omp parallel for schedule(dynamic, 1) if (order.order.size() >= kParallelMinItems)
-    for (int s = color; s < slabs; s += 2) f(order.slab_start[s], order.slab_start[s + 1]);
+    for (int s = color; s < slabs; s += 2)
+      for (std::size_t at = order.slab_start[s]; at < order.slab_start[s + 1]; ++at)
+        f(order.order[at]);
   }
 }
 
-/// The moments of the particles order[begin, end) summed into their nodes: per node sum w,
-/// sum w d (3), sum w d d^T (6: xx yy zz xy xz yz), sum w v, sum w v d (3), d = x_p - x_i.
-/// The particles of one stencil cell are summed locally and written to their 27 nodes once.
-void add_moments(const Particles& p, std::span<const Real> values, const ParticleOrder& order,
-                 std::size_t begin, std::size_t end, const Grid& g, NodeFits& fits) {
-  for (std::size_t at = begin; at < end;) {
-    const std::uint32_t cell = order.keys[order.order[at]];
-    std::array<std::array<Real, 14>, 27> local{};
-    Vec3i base;
-    for (; at < end && order.keys[order.order[at]] == cell; ++at) {
-      const std::uint32_t q = order.order[at];
-      const auto s = quadratic_stencil(p.x[q], g.origin, g.inv_h);
-      base = s.base;
-      Real d[3][3];  // d[axis][node]: x_p - x_i along the axis
-      const Vec3 corner = p.x[q] - g.position(base.x(), base.y(), base.z());
-      for (int a = 0; a < 3; ++a)
-        for (int k = 0; k < 3; ++k) d[a][k] = corner[a] - k * g.h[a];
-      int c = 0;
-      for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-          for (int k = 0; k < 3; ++k, ++c) {
-            const Real w = s.weight(i, j, k), x = d[0][i], y = d[1][j], z = d[2][k];
-            const Real wv = w * values[q];
-            auto& m = local[c];
-            m[0] += w;
-            m[1] += w * x, m[2] += w * y, m[3] += w * z;
-            m[4] += w * x * x, m[5] += w * y * y, m[6] += w * z * z;
-            m[7] += w * x * y, m[8] += w * x * z, m[9] += w * y * z;
-            m[10] += wv;
-            m[11] += wv * x, m[12] += wv * y, m[13] += wv * z;
-          }
-    }
-    std::size_t nodes[27];
-    g.stencil_indices<3>(base, nodes);
-    for (int c = 0; c < 27; ++c)
-      for (int e = 0; e < 14; ++e) fits.sums[nodes[c]][e] += local[c][e];
-  }
+/// Sums particle q's moments into its 27 nodes: sum w, sum w d (3), sum w d d^T (6: xx yy zz
+/// xy xz yz), sum w v, sum w v d (3), with d = x_p - x_i.
+void add_moments(const Vec3& x, Real value, const Grid& g, NodeFits& fits) {
+  const auto s = quadratic_stencil(x, g.origin, g.inv_h);
+  std::size_t nodes[27];
+  g.stencil_indices<3>(s.base, nodes);
+  Real d[3][3];  // d[axis][node]: x_p - x_i along the axis
+  const Vec3 corner = x - g.position(s.base.x(), s.base.y(), s.base.z());
+  for (int a = 0; a < 3; ++a)
+    for (int k = 0; k < 3; ++k) d[a][k] = corner[a] - k * g.h[a];
+  int c = 0;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      for (int k = 0; k < 3; ++k, ++c) {
+        const Real w = s.weight(i, j, k), dx = d[0][i], dy = d[1][j], dz = d[2][k];
+        const Real wv = w * value;
+        auto& m = fits.sums[nodes[c]];
+        m[0] += w;
+        m[1] += w * dx, m[2] += w * dy, m[3] += w * dz;
+        m[4] += w * dx * dx, m[5] += w * dy * dy, m[6] += w * dz * dz;
+        m[7] += w * dx * dy, m[8] += w * dx * dz, m[9] += w * dy * dz;
+        m[10] += wv;
+        m[11] += wv * dx, m[12] += wv * dy, m[13] += wv * dz;
+      }
 }
 
 /// Solves one node's fit from its moments, in place: m[0..3] becomes (a, b). Returns whether
@@ -149,9 +137,7 @@ void fit_linear(const Particles& p, const ParticleOrder& order, const Grid& g,
                 std::span<Vec3> gradient) {
   fits.sums.assign(g.mass.size(), {});
   fits.ok.assign(g.mass.size(), 0);
-  for_each_slab(order, [&](std::size_t begin, std::size_t end) {
-    add_moments(p, values, order, begin, end, g, fits);
-  });
+  for_each_by_slab(order, [&](std::uint32_t q) { add_moments(p.x[q], values[q], g, fits); });
   Real heaviest = 0;
   for (const auto& m : fits.sums) heaviest = std::max(heaviest, m[0]);
   const Real h2 = g.h.minCoeff() * g.h.minCoeff();
@@ -260,9 +246,8 @@ void domain_particles_to_grid(const Particles& p, const ParticleOrder& order, Tr
   clear_node_sums(g);
   const bool affine = transfer == Transfer::apic || transfer == Transfer::mls;
   const Real impulse = g.flip ? 1 : dt;  // FLIP keeps the force apart
-  for_each_slab(order, [&](std::size_t begin, std::size_t end) {
-    for (std::size_t at = begin; at < end; ++at)
-      scatter_domain_particle(p, order.order[at], affine, impulse, pressure_gradient, g);
+  for_each_by_slab(order, [&](std::uint32_t q) {
+    scatter_domain_particle(p, q, affine, impulse, pressure_gradient, g);
   });
 }
 
