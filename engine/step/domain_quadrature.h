@@ -5,13 +5,14 @@
 /// -integral sigma grad w_i. Where a free surface cuts a node's B-spline (the top of a pool)
 /// that quadrature sets the top particles' pressure wrongly, by a fraction of rho g h that
 /// depends on where the surface lies between the node rows (docs/accuracy.md, "The pool's top
-/// layer"). Here each particle's domain is a cube of its current volume (cpGIMP, Wallstedt and
-/// Guilkey 2008), its stress is linear over the domain, sigma_p - (grad p_p . (x - x_p)) I,
-/// and the quadratic B-spline's gradient is integrated exactly over it (uGIMP's domain
-/// averages, Bardenhagen and Kober 2004, eq. 24-27, with a linear rather than a constant
-/// stress). The pressure's gradient comes from per-node weighted linear least-squares fits of
+/// layer"). Here each particle's domain is a cube of its current volume (the domain follows
+/// the deformation's volume, as in cpGIMP; GIMP: Bardenhagen and Kober 2004, "The generalized
+/// interpolation material point method", CMES 5), its stress is linear over the domain,
+/// sigma_p - (grad p_p . (x - x_p)) I, and the quadratic B-spline's gradient is integrated
+/// exactly over it (GIMP's domain-averaged weights and gradients, with a linear rather than a
+/// constant stress). The pressure's gradient comes from per-node weighted linear least-squares fits of
 /// the particles' pressures (as the Taylor least-squares reconstruction of Wobbes et al.
-/// 2020). Mass, momentum and the gather use the same domain weights (uGIMP's), so that a
+/// 2020). Mass, momentum and the gather use the same domain-averaged weights, so that a
 /// node's inertia comes from the particles its force does.
 
 #include <array>
