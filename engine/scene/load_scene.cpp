@@ -18,11 +18,13 @@ namespace mpm {
 
 namespace {
 
-/// Reads `key` as one of the named `choices` (the first is the default), or fails with the list.
+/// Reads `key` as one of the named `choices`, or fails with the list; without the key,
+/// `fallback` (the described struct's default, so that the struct is the one place defaults live).
 template <class E>
-E read_choice(ParamReader& r, const std::string& key,
+E read_choice(ParamReader& r, const std::string& key, E fallback,
               std::initializer_list<std::pair<const char*, E>> choices) {
-  const std::string value = r.get_or<std::string>(key, choices.begin()->first);
+  if (!r.has(key)) return fallback;
+  const std::string value = r.require<std::string>(key);
   std::string names;
   std::size_t i = 0;
   for (const auto& [name, e] : choices) {
@@ -46,28 +48,31 @@ SimulationDesc read_simulation(ParamReader r) {
   if (s.cfl) r.check_range("cfl", *s.cfl, 0, 1, true);
   if (!s.dt && !s.cfl) r.fail("", "give 'dt' (fixed substep), 'cfl' (adaptive substep), or both");
   s.gravity = r.get_or("gravity", s.gravity);
-  s.transfer = read_choice<Transfer>(
-      r, "transfer", {{"apic", Transfer::apic}, {"pic", Transfer::pic}, {"flip", Transfer::flip},
-                      {"mls", Transfer::mls}});
+  s.transfer = read_choice<Transfer>(r, "transfer", s.transfer,
+                                     {{"apic", Transfer::apic},
+                                      {"pic", Transfer::pic},
+                                      {"flip", Transfer::flip},
+                                      {"mls", Transfer::mls}});
   s.flip_blend = r.get_or("flip_blend", s.flip_blend);
   r.check_range("flip_blend", s.flip_blend, 0, 1);
-  s.kernel = read_choice<Kernel>(r, "kernel", {{"quadratic", Kernel::quadratic},
-                                                {"linear", Kernel::linear},
-                                                {"cubic", Kernel::cubic}});
+  s.kernel = read_choice<Kernel>(
+      r, "kernel", s.kernel,
+      {{"quadratic", Kernel::quadratic}, {"linear", Kernel::linear}, {"cubic", Kernel::cubic}});
   s.damping = r.get_or("damping", s.damping);
   r.check_range("damping", s.damping, 0, 1e300);
   s.seed = r.get_or<std::uint64_t>("seed", s.seed);
   s.reorder_every = r.get_or("reorder_every", s.reorder_every);
   r.check_range("reorder_every", s.reorder_every, 0, 1 << 30);
   s.simd = r.get_or("simd", s.simd);
-  s.contact = read_choice<Contact>(r, "contact",
+  s.contact = read_choice<Contact>(r, "contact", s.contact,
                                    {{"nodes", Contact::nodes}, {"particles", Contact::particles}});
   s.contact_iterations = r.get_or("contact_iterations", s.contact_iterations);
   r.check_range("contact_iterations", s.contact_iterations, 1, 1e6);
   s.contact_spectral_radius = r.get_or("contact_spectral_radius", s.contact_spectral_radius);
   r.check_range("contact_spectral_radius", s.contact_spectral_radius, 0, 0.999);
-  s.quadrature = read_choice<Quadrature>(
-      r, "quadrature", {{"point", Quadrature::point}, {"domain", Quadrature::domain}});
+  s.quadrature =
+      read_choice<Quadrature>(r, "quadrature", s.quadrature,
+                              {{"point", Quadrature::point}, {"domain", Quadrature::domain}});
   s.quadrature_loc = r.loc("quadrature");
   if (s.quadrature == Quadrature::domain && s.kernel != Kernel::quadratic)
     r.fail("quadrature",
@@ -93,7 +98,8 @@ GridDesc read_grid(ParamReader r) {
     if (!std::isnormal(g.spacing()[a]))
       r.fail("max", "the cell size (max - origin) / dims overflows or underflows");
   if (r.has("sampling_origin")) g.sampling_origin = r.require<Vec3>("sampling_origin");
-  g.float_nodes = read_choice<bool>(r, "precision", {{"double", false}, {"float", true}});
+  g.float_nodes =
+      read_choice<bool>(r, "precision", g.float_nodes, {{"double", false}, {"float", true}});
   g.buffer = r.get_or("buffer", g.buffer);
   r.check_range("buffer", g.buffer, 2, 1e5);
   if (2 * g.buffer + 1 > g.dims.minCoeff())
@@ -104,9 +110,9 @@ GridDesc read_grid(ParamReader r) {
 }
 
 Boundary read_boundary(ParamReader& r) {
-  return read_choice<Boundary>(r, "boundary", {{"sticky", Boundary::sticky},
-                                               {"slip", Boundary::slip},
-                                               {"separate", Boundary::separate}});
+  return read_choice<Boundary>(
+      r, "boundary", WallDesc{}.boundary,
+      {{"sticky", Boundary::sticky}, {"slip", Boundary::slip}, {"separate", Boundary::separate}});
 }
 
 /// Reads a collider's file path, relative to the scene's folder unless absolute.
@@ -235,14 +241,17 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
   if (o.density) r.check_range("density", *o.density, 0, 1e300, true);
   o.particles_per_cell = r.get_or("particles_per_cell", o.particles_per_cell);
   r.check_range("particles_per_cell", o.particles_per_cell, 1, 1000);
-  o.sampling = read_choice<Sampling>(
-      r, "sampling", {{"jittered", Sampling::jittered}, {"regular", Sampling::regular}});
+  o.sampling =
+      read_choice<Sampling>(r, "sampling", o.sampling,
+                            {{"jittered", Sampling::jittered}, {"regular", Sampling::regular}});
   const int strata = static_cast<int>(std::lround(std::cbrt(o.particles_per_cell)));
   if (o.sampling == Sampling::regular && strata * strata * strata != o.particles_per_cell)
-    r.fail("sampling", "regular sampling needs particles_per_cell to be a cube (1, 8, 27, ...), not " +
-                           std::to_string(o.particles_per_cell));
+    r.fail("sampling",
+           "regular sampling needs particles_per_cell to be a cube (1, 8, 27, ...), not " +
+               std::to_string(o.particles_per_cell));
   o.initial_stress = read_choice<InitialStress>(
-      r, "initial_stress", {{"none", InitialStress::none}, {"gravity", InitialStress::gravity}});
+      r, "initial_stress", o.initial_stress,
+      {{"none", InitialStress::none}, {"gravity", InitialStress::gravity}});
   o.material = r.require<std::string>("material");
   const MaterialInfo* info = registry.find(o.material);
   if (!info)
@@ -256,8 +265,8 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
       r.fail_missing(spec.name, "missing required key '" + spec.name + "' (" + spec.description +
                                     ") for material '" + o.material + "'");
     const double value = v ? *v : spec.default_value;
-    if (v) r.check_range(spec.name, value, spec.min, spec.max, spec.min_exclusive,
-                         spec.max_exclusive);
+    if (v)
+      r.check_range(spec.name, value, spec.min, spec.max, spec.min_exclusive, spec.max_exclusive);
     o.params[spec.name] = value;
   }
   r.finish();
@@ -273,9 +282,11 @@ SurfaceDesc read_surface(ParamReader r) {
   r.check_range("voxel", s.voxel, 0.1, 1);
   // ParticlesToLevelSet skips spheres narrower than 1.5 voxels: refuse rather than lose them.
   if (s.radius < 1.5 * s.voxel)
-    r.fail("voxel", "voxel (" + std::to_string(s.voxel) + " particle spacings) must be at most "
-                    "radius / 1.5 (" + std::to_string(s.radius / 1.5) +
-                    "): a sphere narrower than 1.5 voxels would be dropped");
+    r.fail("voxel", "voxel (" + std::to_string(s.voxel) +
+                        " particle spacings) must be at most "
+                        "radius / 1.5 (" +
+                        std::to_string(s.radius / 1.5) +
+                        "): a sphere narrower than 1.5 voxels would be dropped");
   s.smoothing = r.get_or("smoothing", s.smoothing);
   r.check_range("smoothing", s.smoothing, 0, 100);
   s.normals = r.get_or("normals", s.normals);
@@ -436,7 +447,8 @@ void apply_override(YAML::Node root, const SceneOverride& o, const std::string& 
         throw SceneError(where, o.key, "bad list index");
       }
       if (!node.IsSequence() || index >= node.size())
-        throw SceneError(where, o.key, "'" + done + "' has no entry [" + std::to_string(index) + "]");
+        throw SceneError(where, o.key,
+                         "'" + done + "' has no entry [" + std::to_string(index) + "]");
       done += k.substr(i, close - i + 1);
       i = close + 1;
       if (i >= k.size()) {
@@ -464,8 +476,9 @@ void apply_override(YAML::Node root, const SceneOverride& o, const std::string& 
           for (const auto& kv : node)
             if (kv.second.IsSequence()) lists.push_back(kv.first.Scalar());
         const std::string guess = closest_match(name, lists);
-        throw SceneError(where, o.key, "there is no list '" + done + "'" +
-                                           (guess.empty() ? "" : " (did you mean '" + guess + "'?)"));
+        throw SceneError(where, o.key,
+                         "there is no list '" + done + "'" +
+                             (guess.empty() ? "" : " (did you mean '" + guess + "'?)"));
       }
       node[name] = YAML::Node(YAML::NodeType::Map);
     }
@@ -481,8 +494,9 @@ YAML::Node parse_yaml(const std::string& text, const std::string& fname) {
   } catch (const YAML::Exception& e) {
     FileLoc loc{fname, e.mark.line + 1, e.mark.column + 1};
     if (e.mark.line < 0) loc = {fname, 0, 0};
-    throw SceneError(loc, "", "YAML syntax error: " + e.msg +
-                                  (e.mark.line < 0 ? "" : missing_colon_hint(text, loc.line)));
+    throw SceneError(loc, "",
+                     "YAML syntax error: " + e.msg +
+                         (e.mark.line < 0 ? "" : missing_colon_hint(text, loc.line)));
   }
 }
 

@@ -19,6 +19,7 @@ struct WallHit {
   Real distance;  ///< Signed distance of the particle from the wall, m (negative behind it).
   Vec3 normal;    ///< Unit normal into the free side.
   Vec3 velocity;  ///< Wall velocity at the particle, m/s.
+  Vec3 point;     ///< The particle's projection on the wall: its contact point.
 };
 
 /// The radius of particle q against a wall of normal n (contact.h): half its spacing
@@ -87,9 +88,10 @@ struct GridSpeed {
 /// A wall as the contact search takes it: its condition and how far a particle can close on
 /// it within a substep.
 struct WallReach {
-  Boundary boundary;  ///< The wall's condition.
-  Real friction;      ///< Its Coulomb coefficient.
-  Real travel;        ///< The farthest a particle's contact point can close on it, m.
+  Boundary boundary;    ///< The wall's condition.
+  Real friction;        ///< Its Coulomb coefficient.
+  Real travel;          ///< The farthest a particle's contact point can close on it, m.
+  std::uint32_t index;  ///< Its index among the scene's planes, then colliders (its patches).
 };
 
 /// A particle that `hit` found within reach of a wall, before it is appended to the contacts.
@@ -100,7 +102,7 @@ struct Candidate {
   Real gap;                ///< Distance less the particle's radius, m.
 };
 
-/// Appends a contact for every particle and wall w (index `first_wall` + w) that `scan` finds
+/// Appends a contact for every particle and wall w that `scan` finds
 /// within reach (the particle's radius bound plus the wall's travel) and that can act:
 /// touching, or closing its gap within the substep of `dt` as fast as the grid near its
 /// contact point allows (`speed`). `scan(first, last, reach, keep)` tests particles [first,
@@ -109,8 +111,7 @@ struct Candidate {
 /// (each thread scans one contiguous chunk, and the chunks are joined in order).
 template <class Scan>
 void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt,
-                   const std::vector<WallReach>& walls, std::uint32_t first_wall, Scan&& scan,
-                   ContactState& st) {
+                   const std::vector<WallReach>& walls, Scan&& scan, ContactState& st) {
   const Particles& p = radius.p;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
   if (n == 0 || walls.empty()) return;
@@ -128,8 +129,7 @@ void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt
          [&](std::ptrdiff_t q, std::uint32_t w, const WallHit& h) {
            if (h.distance >= radius.most(q) + walls[w].travel) return;
            const Real gap = h.distance - radius.along(q, h.normal);
-           const Vec3 point = p.x[q] - h.distance * h.normal;
-           if (gap > 0 && dt * (speed.near(point) + h.velocity.norm()) <= gap) return;
+           if (gap > 0 && dt * (speed.near(h.point) + h.velocity.norm()) <= gap) return;
            mine.push_back({static_cast<std::uint32_t>(q), w, h, gap});
          });
   }
@@ -141,13 +141,13 @@ void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt
         const std::uint32_t q = c.particle;
         st.particle.push_back(q);
         st.id.push_back(p.id[q]);
-        st.point.push_back(p.x[q] - c.hit.distance * c.hit.normal);
+        st.point.push_back(c.hit.point);
         st.normal.push_back(c.hit.normal);
         st.wall_velocity.push_back(c.hit.velocity);
         st.gap.push_back(c.gap);
         st.boundary.push_back(walls[w].boundary);
         st.friction.push_back(walls[w].friction);
-        st.patch.push_back((first_wall + w) * static_cast<std::uint32_t>(objects) + p.object[q]);
+        st.patch.push_back(walls[w].index * static_cast<std::uint32_t>(objects) + p.object[q]);
       }
 }
 
@@ -185,9 +185,16 @@ void scan_planes(const std::vector<Vec3>& x, const std::vector<Vec3>& normal,
         any |= distance[i] < r;
       }
       if (!any) continue;
-      for (std::ptrdiff_t i = 0; i < m; ++i)
-        if (distance[i] < r)
-          keep(tile + i, static_cast<std::uint32_t>(w), WallHit{distance[i], n, velocity[w]});
+      // A wall across a grid axis has its contact points exactly on its coordinate, so that
+      // they share their ghost rows (gather_stencils).
+      int axis;
+      const bool across = n.cwiseAbs().maxCoeff(&axis) == 1;
+      for (std::ptrdiff_t i = 0; i < m; ++i) {
+        if (!(distance[i] < r)) continue;
+        Vec3 on = xt[i] - distance[i] * n;
+        if (across) on[axis] = point[w][axis];
+        keep(tile + i, static_cast<std::uint32_t>(w), WallHit{distance[i], n, velocity[w], on});
+      }
     }
   }
 }
@@ -223,6 +230,51 @@ bool rubs(const ContactState& st, std::size_t c) {
   return held(st, c) || st.friction[c] > 0;
 }
 
+/// Rows of ghosts down to N cells behind the wall (N + 1 with a ghost's domain) for a contact
+/// of particle spacing `spacing`: beyond, a ghost reaches no node of the stencil.
+template <Kernel K>
+int ghost_row_count(Real spacing, ContactState::ForceWeights kind, const Grid& g) {
+  const int domain = kind == ContactState::ForceWeights::domain;
+  return static_cast<int>(std::ceil((KernelTraits<K>::kNodes + domain) * g.h.maxCoeff() / spacing));
+}
+
+/// The ghost rows' sums for a wall across grid axis `axis` whose normal points to `side` (+1
+/// or -1), at contact coordinate `at` along that axis (ghost_weights): `along[k]` is the sum
+/// over the rows of the force weights at the stencil's node k along the axis.
+template <Kernel K>
+void ghost_rows(Real at, int axis, Real side, Real spacing, ContactState::ForceWeights kind,
+                const Grid& g, Real* along) {
+  using ForceWeights = ContactState::ForceWeights;
+  const bool mls = kind == ForceWeights::mls, domain = kind == ForceWeights::domain;
+  constexpr int N = KernelTraits<K>::kNodes;
+  std::fill(along, along + N, Real(0));
+  const int rows = ghost_row_count<K>(spacing, kind, g);
+  const Real h = g.h[axis], inv_h = g.inv_h[axis];
+  const Real inv_d = KernelTraits<K>::kInvDScale * inv_h * inv_h;
+  const int first = KernelTraits<K>::base((at - g.origin[axis]) * inv_h);
+  for (int r = 0; r < rows; ++r) {
+    const Real xg = at - (r + Real(0.5)) * spacing * side;
+    const Real fx = (xg - g.origin[axis]) * inv_h;
+    if (domain) {
+      const DomainAxis d = domain_axis(fx, std::min(spacing * inv_h, Real(1)), h);
+      for (int k = 0; k < 4; ++k) {
+        const int rel = d.base + k - first;
+        if (rel >= 0 && rel < N) along[rel] += spacing * side * d.s[k];
+      }
+      continue;
+    }
+    const int base = KernelTraits<K>::base(fx);
+    Real w[N], dw[N];
+    KernelTraits<K>::weights(fx - base, w, dw);
+    for (int k = 0; k < N; ++k) {
+      const int rel = base + k - first;
+      if (rel < 0 || rel >= N) continue;
+      const Real to_node = g.origin[axis] + (base + k) * h - xg;
+      along[rel] += spacing * side * (mls ? w[k] * inv_d * to_node : dw[k] * inv_h);
+    }
+  }
+}
+
 /// The weights with which contact c's impulse enters the N^3 nodes of its contact point's
 /// stencil `s`: the force that a continuation of the body behind the wall, rows of particles
 /// of the contact's spacing under uniform pressure, would put on each node, along the normal
@@ -235,44 +287,25 @@ bool rubs(const ContactState& st, std::size_t c) {
 /// (Hu et al. 2018, eq. 29), or the gradient averaged over each ghost's domain (a cube of
 /// the spacing, domain_quadrature.h). With the wall on a node row and APIC these are the contact
 /// point's own weights; nodes behind the wall that only a B-spline tail of the body reaches
-/// get little or none (docs/accuracy.md, "Walls between the node rows").
+/// get little or none (docs/accuracy.md, "Walls between the node rows"). `rows`: the
+/// contact's ghost_rows if the wall lies across a grid axis and they are known, else null.
 template <Kernel K>
 void ghost_weights(const Stencil<KernelTraits<K>::kNodes>& s, const Vec3& point, const Vec3& n,
-                   Real spacing, ContactState::ForceWeights kind, const Grid& g, Real* weights) {
+                   Real spacing, ContactState::ForceWeights kind, const Grid& g, const Real* rows,
+                   Real* weights) {
   using ForceWeights = ContactState::ForceWeights;
   const bool mls = kind == ForceWeights::mls, domain = kind == ForceWeights::domain;
   constexpr int N = KernelTraits<K>::kNodes;
   std::fill(weights, weights + N * N * N, Real(0));
-  // Rows down to N cells behind the wall (N + 1 with a ghost's domain): beyond, a ghost
-  // reaches no node of the stencil.
-  const int rows = static_cast<int>(std::ceil((N + domain) * g.h.maxCoeff() / spacing));
-  const Vec3 inv_d = KernelTraits<K>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
   int axis;
   if (n.cwiseAbs().maxCoeff(&axis) == 1) {
     // A wall across a grid axis: the ghosts share the contact point's other two coordinates,
     // so each weight is the point's weights across the wall times a sum over the rows along it.
-    Real along[N] = {};
-    const Real side = n[axis], h = g.h[axis], inv_h = g.inv_h[axis];
-    for (int r = 0; r < rows; ++r) {
-      const Real xg = point[axis] - (r + Real(0.5)) * spacing * side;
-      const Real fx = (xg - g.origin[axis]) * inv_h;
-      if (domain) {
-        const DomainAxis d = domain_axis(fx, std::min(spacing * inv_h, Real(1)), h);
-        for (int k = 0; k < 4; ++k) {
-          const int rel = d.base + k - s.base[axis];
-          if (rel >= 0 && rel < N) along[rel] += spacing * side * d.s[k];
-        }
-        continue;
-      }
-      const int base = KernelTraits<K>::base(fx);
-      Real w[N], dw[N];
-      KernelTraits<K>::weights(fx - base, w, dw);
-      for (int k = 0; k < N; ++k) {
-        const int rel = base + k - s.base[axis];
-        if (rel < 0 || rel >= N) continue;
-        const Real to_node = g.origin[axis] + (base + k) * h - xg;
-        along[rel] += spacing * side * (mls ? w[k] * inv_d[axis] * to_node : dw[k] * inv_h);
-      }
+    Real own[N];
+    const Real* along = rows;
+    if (!along) {
+      ghost_rows<K>(point[axis], axis, n[axis], spacing, kind, g, own);
+      along = own;
     }
     const int a = (axis + 1) % 3, b = (axis + 2) % 3;
     for (int i = 0; i < N; ++i)
@@ -283,7 +316,8 @@ void ghost_weights(const Stencil<KernelTraits<K>::kNodes>& s, const Vec3& point,
         }
     return;
   }
-  for (int r = 0; r < rows; ++r) {
+  const Vec3 inv_d = KernelTraits<K>::kInvDScale * g.inv_h.cwiseProduct(g.inv_h);
+  for (int r = 0, count = ghost_row_count<K>(spacing, kind, g); r < count; ++r) {
     const Vec3 xg = point - (r + Real(0.5)) * spacing * n;
     if (domain) {
       const DomainStencil sd = domain_stencil(xg, spacing * spacing * spacing, g);
@@ -399,11 +433,53 @@ void compact_nodes(const Grid& g, const std::vector<std::size_t>& storage_index,
   }
 }
 
+/// The ghost rows (ghost_rows) the contacts on walls across a grid axis share: one set per
+/// wall coordinate, side and spacing, which find_contacts gives such a wall's contact points
+/// exactly. Most scenes have a few; past kMost, further ones are found per contact.
+template <Kernel K>
+struct SharedGhostRows {
+  static constexpr int N = KernelTraits<K>::kNodes;
+  static constexpr std::size_t kMost = 64;  ///< The most sets kept.
+  /// One set of rows and what it is for.
+  struct Entry {
+    int axis;
+    Real side, at, spacing;
+    Real along[N];
+  };
+  std::vector<Entry> entries;  ///< The sets.
+  std::vector<int> of;         ///< Per contact, its set, or -1.
+
+  /// The sets of the contacts of `st`, whose particles have the per-object `spacing`.
+  SharedGhostRows(const ContactState& st, const Particles& p, const std::vector<Real>& spacing,
+                  const Grid& g)
+      : of(st.size(), -1) {
+    for (std::size_t c = 0; c < st.size(); ++c) {
+      int axis;
+      const Vec3& n = st.normal[c];
+      if (n.cwiseAbs().maxCoeff(&axis) != 1) continue;
+      const Real side = n[axis], at = st.point[c][axis];
+      const Real sp = spacing[p.object[st.particle[c]]];
+      std::size_t e = 0;
+      while (e < entries.size() && !(entries[e].axis == axis && entries[e].side == side &&
+                                     entries[e].at == at && entries[e].spacing == sp))
+        ++e;
+      if (e == entries.size()) {
+        if (e == kMost) continue;
+        entries.push_back({axis, side, at, sp, {}});
+        ghost_rows<K>(at, axis, side, sp, st.force_weights, g, entries.back().along);
+      }
+      of[c] = static_cast<int>(e);
+    }
+  }
+  /// Contact c's rows, or null.
+  const Real* rows(std::size_t c) const { return of[c] < 0 ? nullptr : entries[of[c]].along; }
+};
+
 /// The contacts' stencils (weights, grid storage indices), then compact node indices in
 /// first-touch order with each node's velocity, inverse mass and key.
-template <int N>
-void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, ContactState& st) {
-  constexpr int S = N * N * N;
+template <Kernel K>
+void gather_stencils(Real dt, const Particles& p, const Grid& g, ContactState& st) {
+  constexpr int N = KernelTraits<K>::kNodes, S = N * N * N;
   const std::size_t nc = st.size();
   const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(nc);
   std::vector<std::size_t> storage_index(nc * S);
@@ -413,54 +489,50 @@ void gather_stencils(Kernel kernel, Real dt, const Particles& p, const Grid& g, 
   // Each object's particle spacing, for the ghost rows.
   std::vector<Real> spacing(p.object_volume0.size());
   for (std::size_t o = 0; o < spacing.size(); ++o) spacing[o] = std::cbrt(p.object_volume0[o]);
+  const SharedGhostRows<K> shared(st, p, spacing, g);
   // The stencil of the contact point, on the wall: the velocity there is the contact's, so a
   // ball rolls on the wall, not on its particles' centres; its impulse enters with the ghost
   // weights. Nodes without mass take no part, and the weights of the others are scaled to
   // sum to one.
 #pragma omp parallel for schedule(static) if (sn * S >= kParallelMinItems)
   for (std::ptrdiff_t c = 0; c < sn; ++c) {
-    dispatch_kernel(kernel, [&]<Kernel K>() {
-      if constexpr (KernelTraits<K>::kNodes == N) {
-        const auto s = make_stencil<K>(st.point[c], g.origin, g.inv_h);
-        std::size_t* at = &storage_index[c * S];
-        Real* w = &st.weights[c * S];
-        // A particle still a gap away whose every node moves away from the wall, or closes
-        // slower than the gap within the substep, cannot act (the interpolated velocity is a
-        // mean of the nodes'), so its weights are not worth finding.
-        Real closing = 0;
-        g.stencil_indices<N, true>(s.base, at);  // kNoStorage is kNoNode
-        int t;
-        for (t = 0; t < S; ++t) {
-          if (at[t] != kNoNode && !(g.mass[at[t]] > 0)) at[t] = kNoNode;
-          if (at[t] != kNoNode)
-            closing =
-                std::max(closing, -(g.velocity[at[t]] - st.wall_velocity[c]).dot(st.normal[c]));
-        }
-        if (st.gap[c] > 0 && closing * dt <= st.gap[c]) {
-          std::fill(w, w + S, Real(0));
-          return;
-        }
-        ghost_weights<K>(s, st.point[c], st.normal[c], spacing[p.object[st.particle[c]]],
-                         st.force_weights, g, w);
-        Real sum = 0;
-        for (t = 0; t < S; ++t) {
-          w[t] = at[t] == kNoNode ? 0 : std::max(w[t], Real(0));
-          sum += w[t];
-        }
-        for (t = 0; t < S; ++t) w[t] = sum > 0 ? w[t] / sum : 0;
-        // It acts if touching, or closing its gap within the substep at the velocity
-        // interpolated now (the solve's impulses only push particles away).
-        Vec3 u = Vec3::Zero();
-        Real total = 0;
-        for (t = 0; t < S; ++t) {
-          if (at[t] == kNoNode) continue;
-          u += w[t] * g.velocity[at[t]];
-          total += w[t];
-        }
-        acts[c] = total != 0 &&
-                  (st.gap[c] <= 0 || (u - st.wall_velocity[c]).dot(st.normal[c]) < -st.gap[c] / dt);
-      }
-    });
+    const auto s = make_stencil<K>(st.point[c], g.origin, g.inv_h);
+    std::size_t* at = &storage_index[c * S];
+    Real* w = &st.weights[c * S];
+    // A particle still a gap away whose every node moves away from the wall, or closes
+    // slower than the gap within the substep, cannot act (the interpolated velocity is a
+    // mean of the nodes'), so its weights are not worth finding.
+    Real closing = 0;
+    g.stencil_indices<N, true>(s.base, at);  // kNoStorage is kNoNode
+    int t;
+    for (t = 0; t < S; ++t) {
+      if (at[t] != kNoNode && !(g.mass[at[t]] > 0)) at[t] = kNoNode;
+      if (at[t] != kNoNode)
+        closing = std::max(closing, -(g.velocity[at[t]] - st.wall_velocity[c]).dot(st.normal[c]));
+    }
+    if (st.gap[c] > 0 && closing * dt <= st.gap[c]) {
+      std::fill(w, w + S, Real(0));
+      continue;
+    }
+    ghost_weights<K>(s, st.point[c], st.normal[c], spacing[p.object[st.particle[c]]],
+                     st.force_weights, g, shared.rows(c), w);
+    Real sum = 0;
+    for (t = 0; t < S; ++t) {
+      w[t] = at[t] == kNoNode ? 0 : std::max(w[t], Real(0));
+      sum += w[t];
+    }
+    for (t = 0; t < S; ++t) w[t] = sum > 0 ? w[t] / sum : 0;
+    // It acts if touching, or closing its gap within the substep at the velocity
+    // interpolated now (the solve's impulses only push particles away).
+    Vec3 u = Vec3::Zero();
+    Real total = 0;
+    for (t = 0; t < S; ++t) {
+      if (at[t] == kNoNode) continue;
+      u += w[t] * g.velocity[at[t]];
+      total += w[t];
+    }
+    acts[c] = total != 0 &&
+              (st.gap[c] <= 0 || (u - st.wall_velocity[c]).dot(st.normal[c]) < -st.gap[c] / dt);
   }
   keep_acting_contacts(acts, st, storage_index);
   compact_nodes(g, storage_index, st);
@@ -816,8 +888,7 @@ struct ContactSteps {
 
 /// Keeps each particle's equal share of its merged contact's (`members`) normal impulse in
 /// `memory`, for the next substep's warm start.
-void keep_impulses(const Members& members, const ContactState& st, Real dt,
-                   ContactMemory& memory) {
+void keep_impulses(const Members& members, const ContactState& st, Real dt, ContactMemory& memory) {
   std::vector<std::uint32_t> patch(members.id.size());
   std::vector<Real> impulse(members.id.size());
   for (std::size_t c = 0; c < st.size(); ++c)
@@ -967,17 +1038,30 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
       speed.block.empty() ? Real(0) : *std::max_element(speed.block.begin(), speed.block.end());
   const auto travel = [&](Real wall_speed) { return std::min(cell, dt * (fastest + wall_speed)); };
   const ParticleRadius particle_radius{p, radius, st.rest_depth};
-  // The planes, in one pass over the particles.
+  // The planes, in one pass over the particles. A plane that coincides with one listed
+  // before it (a floor under a box's bottom face, moving alike) is left out: its contacts would
+  // pose the same condition twice, and split the normal impulse between the two, so that each
+  // wall's friction bound saw only part of it. The first one listed acts.
   std::vector<WallReach> reach;
   std::vector<Vec3> normals, points, velocities;
-  for (const WallPlane& w : planes) {
+  for (std::size_t i = 0; i < planes.size(); ++i) {
+    const WallPlane& w = planes[i];
+    const Vec3 at = w.point + w.offset(time), velocity = w.velocity_at(time + dt);
+    const auto same = [&](std::size_t k) {
+      return normals[k] == w.normal && velocities[k] == velocity &&
+             std::abs((points[k] - at).dot(w.normal)) <= Real(1e-9) * cell;
+    };
+    std::size_t k = 0;
+    while (k < normals.size() && !same(k)) ++k;
+    if (k < normals.size()) continue;
     normals.push_back(w.normal);
-    points.push_back(w.point + w.offset(time));
-    velocities.push_back(w.velocity_at(time + dt));
-    reach.push_back({w.boundary, w.friction, travel(velocities.back().norm())});
+    points.push_back(at);
+    velocities.push_back(velocity);
+    reach.push_back(
+        {w.boundary, w.friction, travel(velocity.norm()), static_cast<std::uint32_t>(i)});
   }
   find_contacts(
-      particle_radius, speed, dt, reach, 0,
+      particle_radius, speed, dt, reach,
       [&](std::ptrdiff_t first, std::ptrdiff_t last, const std::vector<Real>& most, auto&& keep) {
         scan_planes(p.x, normals, points, velocities, first, last, most, keep);
       },
@@ -991,7 +1075,7 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
                        : kRestDepthCap * *std::max_element(radius.begin(), radius.end()) + cell);
     const Eigen::AlignedBox<Real, 3> near(now.bounds.min() - margin, now.bounds.max() + margin);
     find_contacts(
-        particle_radius, speed, dt, {{c.boundary, c.friction, cell}}, wall++,
+        particle_radius, speed, dt, {{c.boundary, c.friction, cell, wall++}},
         [&](std::ptrdiff_t first, std::ptrdiff_t last, const std::vector<Real>& most, auto&& keep) {
           for (std::ptrdiff_t q = first; q < last; ++q) {
             const Vec3& x = p.x[q];
@@ -1000,14 +1084,14 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
             if (c.phi(x0) >= most[0]) continue;  // the normal only where needed
             const SdfSample s = c.sample(x0);
             if (s.normal.squaredNorm() == 0) continue;
-            keep(q, 0, WallHit{s.phi, now.rotation * s.normal, next.velocity_at(x)});
+            const Vec3 normal = now.rotation * s.normal;
+            keep(q, 0, WallHit{s.phi, normal, next.velocity_at(x), x - s.phi * normal});
           }
         },
         st);
   }
   st.patches = wall * radius.size();
-  dispatch_kernel(
-      kernel, [&]<Kernel K>() { gather_stencils<KernelTraits<K>::kNodes>(kernel, dt, p, g, st); });
+  dispatch_kernel(kernel, [&]<Kernel K>() { gather_stencils<K>(dt, p, g, st); });
 }
 
 Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
