@@ -375,7 +375,10 @@ void Simulation::add_boundary_stages() {
       if (!domain_->failure().empty()) contact_.clear();
       wall_work_ += domain_->solve_contact(contact_settings, dt, contact_, grid_, contact_memory_);
     });
-  add_stage("domain_boundary", [this](Real) { apply_domain_boundary(grid_); });
+  // The buffer yields to the walls that cover its sides (walls.h).
+  add_stage("domain_boundary", [this](Real dt) {
+    apply_domain_boundary(buffer_layers_behind_walls(walls_, time_ + dt, grid_), grid_);
+  });
 }
 
 void Simulation::add_domain_scatter_stages() {

@@ -63,13 +63,12 @@ std::vector<std::string> objects_in_walls(const Simulation& sim) {
       const WallDesc& d = walls[k];
       const std::string where =
           d.shape == WallDesc::Shape::plane
-              ? fmt("behind the plane through [%g, %g, %g]", d.point.x(), d.point.y(),
-                    d.point.z()) +
+              ? fmt("behind the plane through [%g, %g, %g]", d.point.x(), d.point.y(), d.point.z()) +
                     fmt(" with normal [%g, %g, %g]", d.normal.x(), d.normal.y(), d.normal.z())
               : fmt("outside the box from [%g, %g, %g]", d.min.x(), d.min.y(), d.min.z()) +
                     fmt(" to [%g, %g, %g]", d.max.x(), d.max.y(), d.max.z());
-      w.push_back("object '" + info.name + "' starts inside walls[" + std::to_string(k) +
-                  "]: " + std::to_string(inside) + " of " + std::to_string(info.count) +
+      w.push_back("object '" + info.name + "' starts inside walls[" + std::to_string(k) + "]: " +
+                  std::to_string(inside) + " of " + std::to_string(info.count) +
                   " particles lie " + where + "; the wall will push them out at once");
     }
   }
@@ -101,17 +100,6 @@ std::vector<std::string> objects_in_colliders(const Simulation& sim) {
   return w;
 }
 
-/// How far the kernel's stencil reaches from a particle, in cells.
-Real kernel_reach(Kernel k) {
-  return k == Kernel::linear ? 1.0 : k == Kernel::quadratic ? 1.5 : 2.0;
-}
-
-/// Where a grid axis's boundary buffer ends on one side: its innermost node layer, in metres.
-Real buffer_layer(const Grid& g, int axis, int side) {
-  const Real layer = side == 0 ? g.buffer : g.nodes[axis] - 1 - g.buffer;
-  return g.origin[axis] + layer * g.h[axis];
-}
-
 /// Per object and grid side, the particles whose kernel stencil reaches the nodes of the
 /// grid's boundary buffer where no plane or box wall covers them: apply_domain_boundary then
 /// stops the body's outward node velocities there like a hidden wall (docs/validation.md).
@@ -120,14 +108,16 @@ std::vector<std::string> objects_near_buffer(const Simulation& sim) {
   const Grid& g = sim.grid();
   const Particles& p = sim.particles();
   const SceneDesc& scene = sim.scene();
-  const Real reach = kernel_reach(scene.simulation.kernel);
+  const Real reach = scene.simulation.kernel == Kernel::linear      ? 1.0
+                     : scene.simulation.kernel == Kernel::quadratic ? 1.5
+                                                                    : 2.0;
   const std::vector<WallPlane> planes = build_wall_planes(scene.walls);
   const char* axis_name = "xyz";
   for (int a = 0; a < 3; ++a)
     for (int side = 0; side < 2; ++side) {
       // The buffer's innermost node layer on this side, in grid units and in metres.
       const Real layer = side == 0 ? g.buffer : g.nodes[a] - 1 - g.buffer;
-      const Real layer_x = buffer_layer(g, a, side);
+      const Real layer_x = g.origin[a] + layer * g.h[a];
       // A wall whose solid side holds the buffer's layer already acts on those nodes.
       bool covered = false;
       for (const WallPlane& pl : planes) {
@@ -155,37 +145,6 @@ std::vector<std::string> objects_near_buffer(const Simulation& sim) {
   return w;
 }
 
-/// With contact at the particles: the plane walls across a grid axis that lie less than the
-/// kernel's reach from the grid's boundary buffer. A particle touching such a wall has buffer
-/// nodes in its stencil, and apply_domain_boundary stops its motion toward the wall on those
-/// nodes before the contact acts: the node rule, without the wall's friction (docs/accuracy.md,
-/// "Trying particles as the default": a stiff cube bounced off the buffer there and spun).
-std::vector<std::string> walls_near_buffer(const Simulation& sim) {
-  std::vector<std::string> w;
-  const SceneDesc& scene = sim.scene();
-  if (scene.simulation.contact != Contact::particles) return w;
-  const Grid& g = sim.grid();
-  const Real reach = kernel_reach(scene.simulation.kernel);
-  const char* axis_name = "xyz";
-  for (const WallPlane& pl : build_wall_planes(scene.walls)) {
-    int a;
-    if (pl.normal.cwiseAbs().maxCoeff(&a) != 1) continue;
-    const int side = pl.normal[a] > 0 ? 0 : 1;  // the wall's solid side
-    const Real layer_x = buffer_layer(g, a, side);
-    const Real at = (pl.point + pl.offset(0))[a];
-    const Real cells = (side == 0 ? at - layer_x : layer_x - at) * g.inv_h[a];
-    if (cells < -1e-9 || cells >= reach) continue;
-    w.push_back("the wall at " + std::string(1, axis_name[a]) + " = " + fmt("%g", at) +
-                " m lies only " + fmt("%.2g", cells) +
-                " cells from the grid's boundary buffer at " + fmt("%g", layer_x) +
-                " m: with contact: particles, the buffer's nodes stop a body " +
-                "moving toward it before the wall's contact does (without its friction); move " +
-                "the grid " + std::to_string(static_cast<int>(std::ceil(reach - cells))) +
-                " cells further out on that side");
-  }
-  return w;
-}
-
 }  // namespace
 
 std::vector<std::string> scene_warnings(Simulation& sim) {
@@ -197,13 +156,11 @@ std::vector<std::string> scene_warnings(Simulation& sim) {
   for (std::string& line : objects_in_walls(sim)) w.push_back(std::move(line));
   for (std::string& line : objects_in_colliders(sim)) w.push_back(std::move(line));
   for (std::string& line : objects_near_buffer(sim)) w.push_back(std::move(line));
-  for (std::string& line : walls_near_buffer(sim)) w.push_back(std::move(line));
   const Real bound = sim.cfl_bound(1.0);
   if (!scene.simulation.cfl && scene.simulation.dt && *scene.simulation.dt > bound)
-    w.push_back(
-        fmt("simulation.dt = %g s is above the CFL bound h / (c + |v|max) = %.3g s at "
-            "the start; the run is likely to become unstable: lower dt or set cfl",
-            *scene.simulation.dt, bound));
+    w.push_back(fmt("simulation.dt = %g s is above the CFL bound h / (c + |v|max) = %.3g s at "
+                    "the start; the run is likely to become unstable: lower dt or set cfl",
+                    *scene.simulation.dt, bound));
   for (const ObjectDesc& o : scene.objects)
     if (o.particles_per_cell < 8)
       w.push_back("object '" + o.name + "': particles_per_cell " +
@@ -211,8 +168,8 @@ std::vector<std::string> scene_warnings(Simulation& sim) {
                   " is fewer than 2 per cell along each axis; expect gaps and cell-crossing noise");
   const double bytes = static_cast<double>(sim.particles().size()) * 500;
   if (sim.particles().size() > 20'000'000 || bytes > 0.5 * physical_memory_bytes())
-    w.push_back(
-        fmt("%.0f particles need about %.1f GB of memory", sim.particles().size(), bytes / 1e9));
+    w.push_back(fmt("%.0f particles need about %.1f GB of memory", sim.particles().size(),
+                    bytes / 1e9));
   return w;
 }
 
@@ -220,8 +177,8 @@ std::string scene_summary(Simulation& sim) {
   const SceneDesc& s = sim.scene();
   std::string out;
   for (const ObjectInfo& o : sim.objects())
-    out += "object " + o.name + ": " + o.material + ", " + std::to_string(o.count) +
-           " particles, " + fmt("%g kg, %g kg/m^3\n", o.mass, o.density);
+    out += "object " + o.name + ": " + o.material + ", " +
+           std::to_string(o.count) + " particles, " + fmt("%g kg, %g kg/m^3\n", o.mass, o.density);
   const Vec3 h = s.grid.spacing();
   out += "grid: " + std::to_string(s.grid.dims.x()) + " x " + std::to_string(s.grid.dims.y()) +
          " x " + std::to_string(s.grid.dims.z()) + " cells, " +

@@ -98,19 +98,42 @@ Real apply_walls(const std::vector<WallPlane>& planes, Real time, Grid& g) {
   });
 }
 
+BufferLayers buffer_layers(const Grid& g) {
+  return {Vec3i::Constant(g.buffer), g.nodes - Vec3i::Constant(1 + g.buffer)};
+}
+
+BufferLayers buffer_layers_behind_walls(const std::vector<WallPlane>& planes, Real time,
+                                        const Grid& g) {
+  BufferLayers layers = buffer_layers(g);
+  for (const WallPlane& w : planes) {
+    int a;
+    if (w.normal.cwiseAbs().maxCoeff(&a) != 1) continue;
+    // The wall's node coordinate along its axis.
+    const Real at = ((w.point + w.offset(time))[a] - g.origin[a]) * g.inv_h[a];
+    if (w.normal[a] > 0 && at >= layers.low[a])
+      layers.low[a] = std::min(layers.low[a], static_cast<int>(std::floor(at)) - 2);
+    if (w.normal[a] < 0 && at <= layers.high[a])
+      layers.high[a] = std::max(layers.high[a], static_cast<int>(std::ceil(at)) + 2);
+  }
+  return layers;
+}
+
 void apply_domain_boundary(Grid& g) {
-  const Vec3i last = g.nodes - Vec3i::Ones();
+  apply_domain_boundary(buffer_layers(g), g);
+}
+
+void apply_domain_boundary(const BufferLayers& layers, Grid& g) {
   // Only blocks that reach the buffer layers have nodes to change.
   const auto near = [&](const Vec3i& o) {
-    return (o.array() <= g.buffer).any() ||
-           (o.array() + Grid::kBlockEdge - 1 >= last.array() - g.buffer).any();
+    return (o.array() <= layers.low.array()).any() ||
+           (o.array() + Grid::kBlockEdge - 1 >= layers.high.array()).any();
   };
   for_each_active_node(g, near, [&](int i, int j, int k, std::size_t idx) {
     const Vec3i n(i, j, k);
     Vec3& v = g.velocity[idx];
     for (int a = 0; a < 3; ++a) {
-      if (n[a] <= g.buffer && v[a] < 0) v[a] = 0;
-      if (n[a] >= last[a] - g.buffer && v[a] > 0) v[a] = 0;
+      if (n[a] <= layers.low[a] && v[a] < 0) v[a] = 0;
+      if (n[a] >= layers.high[a] && v[a] > 0) v[a] = 0;
     }
   });
 }

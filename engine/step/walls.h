@@ -38,8 +38,27 @@ std::vector<WallPlane> build_wall_planes(const std::vector<WallDesc>& walls);
 /// moving walls did on the grid: sum_i m_i (v_i' - v_i) . v_wall.
 Real apply_walls(const std::vector<WallPlane>& planes, Real time, Grid& grid);
 
+/// How deep the grid's boundary buffer acts on each side: per axis, nodes at or below `low`
+/// and at or above `high` have their outward velocity stopped.
+struct BufferLayers {
+  Vec3i low;   ///< Last node index of the low side's buffer (none below 0).
+  Vec3i high;  ///< First node index of the high side's buffer (none past the last node).
+};
+
+/// The `buffer` cells of `grid` on every side.
+BufferLayers buffer_layers(const Grid& grid);
+
+/// The buffer for contact at the particles at time `time`: on a side that a plane wall of
+/// `planes` covers (across the axis, its solid side holding the buffer's innermost layer), only
+/// the nodes more than two cells behind the wall, which no stencil of a particle on the free
+/// side reaches; so the wall's contact, not the buffer, stops a body moving toward it.
+BufferLayers buffer_layers_behind_walls(const std::vector<WallPlane>& planes, Real time,
+                                        const Grid& grid);
+
 /// Keeps velocities of nodes in the grid's boundary buffer from pointing outward.
 void apply_domain_boundary(Grid& grid);
+/// The same, for the buffer's `layers`.
+void apply_domain_boundary(const BufferLayers& layers, Grid& grid);
 
 /// Velocity of a node after a wall condition: v with the normal part handled per `b`
 /// and Coulomb friction mu |v_n| taken off the tangential part.

@@ -458,22 +458,4 @@ TEST_CASE("scene: a body within the kernel's reach of the grid's buffer is warne
   CHECK(warnings_of("", "walls:\n  - plane: {point: [0, 0.15, 0], normal: [0, 1, 0]}\n") == "");
   CHECK_THAT(warnings_of("", "walls:\n  - plane: {point: [0, 0.1, 0], normal: [0, 1, 0]}\n"),
              Contains("boundary buffer at y = 0.15 m"));
-  // With contact at the particles a floor less than 1.5 cells above the buffer's layer is
-  // reached first by the buffer (particles touching it have buffer nodes in their stencils);
-  // one 2 cells above is not, and with contact at the nodes neither is warned about.
-  const auto with_contact = [&](const std::string& contact, double floor) {
-    const std::string yaml = minimal_scene("", "  contact: " + contact + "\n") +
-                             "walls:\n  - plane: {point: [0, " + std::to_string(floor) +
-                             ", 0], normal: [0, 1, 0]}\n";
-    std::unique_ptr<Simulation> sim = Simulation::create(scene_from(yaml), builtin_registry());
-    std::string all;
-    for (const std::string& w : scene_warnings(*sim)) all += w + "\n";
-    return all;
-  };
-  CHECK_THAT(with_contact("particles", 0.16),
-             Contains("the wall at y = 0.16 m lies only 0.2 cells from the grid's boundary "
-                      "buffer at 0.15 m") &&
-                 Contains("move the grid 2 cells further out"));
-  CHECK(with_contact("particles", 0.25) == "");
-  CHECK(with_contact("nodes", 0.16) == "");
 }
