@@ -242,6 +242,7 @@ TEST_CASE("a spinning collider carries sticky particles at w x (x - c)", "[colli
                         : "  - sphere: {center: [0.5, 0.5, 0.5], radius: 0.3}\n";
     const std::string yaml =
         "simulation:\n  frame_dt: 0.05\n  dt: " + std::to_string(dt) + "\n"
+        "  contact: nodes\n"  // the node rule's promise: a body inside a collider moves with it
         "  gravity: [0, 0, 0]\n"
         "grid:\n  max: [1, 1, 1]\n  dims: 40\n"
         "objects:\n"
