@@ -246,9 +246,8 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
                             {{"jittered", Sampling::jittered}, {"regular", Sampling::regular}});
   const int strata = static_cast<int>(std::lround(std::cbrt(o.particles_per_cell)));
   if (o.sampling == Sampling::regular && strata * strata * strata != o.particles_per_cell)
-    r.fail("sampling",
-           "regular sampling needs particles_per_cell to be a cube (1, 8, 27, ...), not " +
-               std::to_string(o.particles_per_cell));
+    r.fail("sampling", "regular sampling needs particles_per_cell to be a cube (1, 8, 27, ...), not " +
+                           std::to_string(o.particles_per_cell));
   o.initial_stress = read_choice<InitialStress>(
       r, "initial_stress", o.initial_stress,
       {{"none", InitialStress::none}, {"gravity", InitialStress::gravity}});
@@ -265,8 +264,8 @@ ObjectDesc read_object(ParamReader r, const std::filesystem::path& scene_dir,
       r.fail_missing(spec.name, "missing required key '" + spec.name + "' (" + spec.description +
                                     ") for material '" + o.material + "'");
     const double value = v ? *v : spec.default_value;
-    if (v)
-      r.check_range(spec.name, value, spec.min, spec.max, spec.min_exclusive, spec.max_exclusive);
+    if (v) r.check_range(spec.name, value, spec.min, spec.max, spec.min_exclusive,
+                         spec.max_exclusive);
     o.params[spec.name] = value;
   }
   r.finish();
@@ -282,11 +281,9 @@ SurfaceDesc read_surface(ParamReader r) {
   r.check_range("voxel", s.voxel, 0.1, 1);
   // ParticlesToLevelSet skips spheres narrower than 1.5 voxels: refuse rather than lose them.
   if (s.radius < 1.5 * s.voxel)
-    r.fail("voxel", "voxel (" + std::to_string(s.voxel) +
-                        " particle spacings) must be at most "
-                        "radius / 1.5 (" +
-                        std::to_string(s.radius / 1.5) +
-                        "): a sphere narrower than 1.5 voxels would be dropped");
+    r.fail("voxel", "voxel (" + std::to_string(s.voxel) + " particle spacings) must be at most "
+                    "radius / 1.5 (" + std::to_string(s.radius / 1.5) +
+                    "): a sphere narrower than 1.5 voxels would be dropped");
   s.smoothing = r.get_or("smoothing", s.smoothing);
   r.check_range("smoothing", s.smoothing, 0, 100);
   s.normals = r.get_or("normals", s.normals);
@@ -447,8 +444,7 @@ void apply_override(YAML::Node root, const SceneOverride& o, const std::string& 
         throw SceneError(where, o.key, "bad list index");
       }
       if (!node.IsSequence() || index >= node.size())
-        throw SceneError(where, o.key,
-                         "'" + done + "' has no entry [" + std::to_string(index) + "]");
+        throw SceneError(where, o.key, "'" + done + "' has no entry [" + std::to_string(index) + "]");
       done += k.substr(i, close - i + 1);
       i = close + 1;
       if (i >= k.size()) {
@@ -476,9 +472,8 @@ void apply_override(YAML::Node root, const SceneOverride& o, const std::string& 
           for (const auto& kv : node)
             if (kv.second.IsSequence()) lists.push_back(kv.first.Scalar());
         const std::string guess = closest_match(name, lists);
-        throw SceneError(where, o.key,
-                         "there is no list '" + done + "'" +
-                             (guess.empty() ? "" : " (did you mean '" + guess + "'?)"));
+        throw SceneError(where, o.key, "there is no list '" + done + "'" +
+                                           (guess.empty() ? "" : " (did you mean '" + guess + "'?)"));
       }
       node[name] = YAML::Node(YAML::NodeType::Map);
     }
@@ -494,9 +489,8 @@ YAML::Node parse_yaml(const std::string& text, const std::string& fname) {
   } catch (const YAML::Exception& e) {
     FileLoc loc{fname, e.mark.line + 1, e.mark.column + 1};
     if (e.mark.line < 0) loc = {fname, 0, 0};
-    throw SceneError(loc, "",
-                     "YAML syntax error: " + e.msg +
-                         (e.mark.line < 0 ? "" : missing_colon_hint(text, loc.line)));
+    throw SceneError(loc, "", "YAML syntax error: " + e.msg +
+                                  (e.mark.line < 0 ? "" : missing_colon_hint(text, loc.line)));
   }
 }
 

@@ -888,7 +888,8 @@ struct ContactSteps {
 
 /// Keeps each particle's equal share of its merged contact's (`members`) normal impulse in
 /// `memory`, for the next substep's warm start.
-void keep_impulses(const Members& members, const ContactState& st, Real dt, ContactMemory& memory) {
+void keep_impulses(const Members& members, const ContactState& st, Real dt,
+                   ContactMemory& memory) {
   std::vector<std::uint32_t> patch(members.id.size());
   std::vector<Real> impulse(members.id.size());
   for (std::size_t c = 0; c < st.size(); ++c)
