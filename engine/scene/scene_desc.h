@@ -53,7 +53,7 @@ struct SimulationDesc {
   std::uint64_t seed = 1;             ///< Seed for particle sampling.
   int reorder_every = 8;              ///< Substeps between particle reorders by cell (0: never).
   bool simd = true;                   ///< Float SIMD transfers (true, the default); false: the scalar double path.
-  Contact contact = Contact::nodes;   ///< Where walls and colliders act.
+  Contact contact = Contact::particles;  ///< Where walls and colliders act.
   int contact_iterations = 12;        ///< Most contact solve iterations per substep (particles).
   /// The spectral radius the contact solve's Chebyshev acceleration assumes (0: none).
   double contact_spectral_radius = 0.95;

@@ -89,11 +89,14 @@ struct Impact {
 
 /// A ball of radius 0.1 m at 10 m/s in x, its centre aimed at a post 3 cm wide (in z) and
 /// 6 cm deep, 0.9 m tall (the cube mesh as a wall, `separate`, friction 0.5), in a 2 m long
-/// box; 6 frames of 0.02 s (the impact at 0.01 s). h = 1/40 m: 8 cells across the ball.
+/// box; 6 frames of 0.02 s (the impact at 0.01 s). h = 1/64 m: 13 cells across the ball and
+/// 1.9 across the post. Contact at the particles keeps each face of the post to its own nodes
+/// only when the post spans about two cells: at h = 1/40 (1.2 cells) the front face's
+/// stencils reach round its sides, and the post holds back a strip four cells wide.
 std::string throw_at_post(const std::string& material) {
   const std::string cube = (test::source_dir() / "scenes/meshes/cube.obj").string();
   return "simulation:\n  frames: 6\n  frame_dt: 0.02\n  cfl: 0.5\n  dt: 1.0e-3\n"
-         "grid:\n  max: [2, 1, 1]\n  dims: [80, 40, 40]\n"
+         "grid:\n  max: [2, 1, 1]\n  dims: [128, 64, 64]\n"
          "objects:\n  - name: ball\n    mesh: " +
          (test::source_dir() / "scenes/meshes/sphere.obj").string() +
          "\n    scale: 0.1\n    offset: [0.35, 0.5, 0.5]\n    velocity: [10, 0, 0]\n"
@@ -198,10 +201,10 @@ TEST_CASE("paper-parameter snow against a post: the turned flow fails into dust,
                               "    E: 1.4e5\n"
                               "    nu: 0.2\n"));
   INFO("snow: " << describe(snow) << "\nelastic: " << describe(elastic));
-  CHECK(snow.tensile > 0.6);  // 83% measured
-  CHECK(snow.intact < 0.5);   // 34% measured: the core on the post
+  CHECK(snow.tensile > 0.6);  // 68% measured (83% at 8 cells, node rule)
+  CHECK(snow.intact < 0.5);   // 43% measured: the core on the post
   CHECK(static_cast<double>(snow.fragments[0]) < 0.9 * static_cast<double>(snow.particles));
-  CHECK(snow.fragments.size() > 100);  // dust: 298 measured, largest 77%
+  CHECK(snow.fragments.size() > 100);  // dust: 2,156 measured, largest 64%
   CHECK(test::count_pieces(snow.fragments, snow.particles, 0.02) == 1);
   CHECK_FALSE(test::shattered(snow.fragments, snow.particles));
   CHECK(elastic.fragments.size() == 1);
@@ -212,10 +215,13 @@ TEST_CASE("the paper-parameter snowball with hard clumps shatters against a post
   // scenes/snowball_paper.yaml as shipped, to 0.08 s (0.07 s after the impact): the paper's
   // snow with a smooth spread of the starting Jp (hard clumps and loose zones about 8 cm
   // across), 26 cells across the ball, thrown at 10 m/s at a post 3 cm wide. The snow that must
-  // turn fails into dust (as at 8 cells, the test above); the clumps stay intact through the
-  // turn and fly on as pieces. Shattered (test::shattered): the largest fragment under 60% and
-  // at least 3 of 2% or more. Each of the three largest is a chunk (much of its snow still
-  // at least 1% as stiff as the virgin snow), and the two flying ones have left the post.
+  // turn fails into dust (as at 13 cells, the test above); the clumps stay intact through the
+  // turn and break away as pieces. Shattered (test::shattered): the largest fragment under 60%
+  // and at least 3 of 2% or more. Each of the three largest is a chunk (much of its snow still
+  // at least 1% as stiff as the virgin snow), and the second largest has left the post and
+  // flies on. The third (2.9%) breaks off the ball's foot and slides down the post's front at
+  // 1.4 m/s in x; with seeds 2 and 3 it flies on too (docs/materials.md). Under the node rule
+  // it flew on with seed 1 as well, while hundreds of particles sank into the post.
   MaterialRegistry registry = builtin_registry();
   const SceneDesc scene = load_scene(test::source_dir() / "scenes/snowball_paper.yaml", registry);
   auto sim = Simulation::create(scene, registry);
@@ -242,10 +248,8 @@ TEST_CASE("the paper-parameter snowball with hard clumps shatters against a post
   REQUIRE(sizes.size() >= 3);
   CHECK(test::shattered(sizes, x.size()));
   for (int f = 0; f < 3; ++f) CHECK(intact[f] > 0.2);
-  for (int f = 1; f < 3; ++f) {
-    CHECK(mean_x[f] > 0.7);   // past the post's far face (x = 0.58 m)
-    CHECK(speed_x[f] > 2.0);  // and still flying on
-  }
+  CHECK(mean_x[1] > 0.7);   // past the post's far face (x = 0.58 m)
+  CHECK(speed_x[1] > 2.0);  // and still flying on
 }
 
 TEST_CASE("initial_Jp_spread: a deterministic spread of the starting Jp", "[physics][snow]") {

@@ -30,9 +30,11 @@ TEST_CASE("two_cubes runs end to end: report, frames, contact, floor", "[regress
   CHECK(report["substeps"].as<std::size_t>() >= static_cast<std::size_t>(frames) * 41);
   CHECK(report["wall_seconds"].as<double>() > 0);
   CHECK(report["particle_steps_per_second"].as<double>() > 0);
-  for (const char* stage : {"particles_to_grid", "grid_update", "gravity", "walls",
-                            "grid_to_particles"})
+  // Walls act at the particles touching them (the default contact): no node-rule stage.
+  for (const char* stage :
+       {"particles_to_grid", "grid_update", "gravity", "contact", "grid_to_particles"})
     CHECK(report["stages"][stage].IsDefined());
+  CHECK_FALSE(report["stages"]["walls"].IsDefined());
   // APIC scatters the stress as an impulse: no separate force stage (FLIP only).
   CHECK_FALSE(report["stages"]["stress_forces"].IsDefined());
   CHECK_FALSE(report["stages"]["plasticity"].IsDefined());  // no plastic material
@@ -57,8 +59,8 @@ TEST_CASE("two_cubes runs end to end: report, frames, contact, floor", "[regress
       REQUIRE(std::isfinite(d.J[q]));
       min_y = std::min<double>(min_y, d.position[3 * q + 1]);
     }
-    // A grid wall stops particles within half a cell of the plane (the stencil of a particle
-    // below floor - h/2 lies wholly in the wall), plus at most one substep of travel.
+    // The contact holds every particle within its radius of the floor; h is the bound the
+    // node rule met (half a cell into the wall, plus a substep of travel).
     CHECK(min_y > floor_y - h);
     // Contact: some particle of one cube within 1.5 cells of a particle of the other.
     std::set<std::tuple<int, int, int>> lower_cells;

@@ -111,12 +111,15 @@ TEST_CASE("validation: Neo-Hookean block under uniaxial compression to 60 %", "[
   const Outcome o = run("uniaxial_compression");
   INFO("stretch " << o.measure("stretch").value << ", sigma_yy " << o.measure("sigma_yy").value
                   << " Pa against " << o.measure("sigma_yy").exact);
-  // The walls end 60 % apart, but the layers within a cell of each wall take more than their
-  // share (docs/validation.md), so the bulk between the bands is squeezed to about 0.74: still
-  // far beyond small strain: there the linear answer E (lambda - 1) is 8 % off the exact one.
-  CHECK(o.measure("stretch").value < 0.8);
-  // 8 jittered particles per cell carry a quadrature error of about 1.5 % on smooth fields
-  // (the study's ppc sweep on the bar); the bound allows twice that.
+  // The walls end 60 % apart and, with contact at the particles, the bulk follows them: no
+  // layer at a wall takes more than its share (the node rule let the particles sink into the
+  // walls and left the bulk at 0.74). Far beyond small strain: there the linear answer
+  // E (lambda - 1) is 8 % off the exact one.
+  CHECK(o.measure("stretch").value < 0.65);
+  // The bound is twice the quadrature error the study's ppc sweep measures for 8 jittered
+  // particles per cell on the bar (1.5 %). The scene samples a lattice: jittered particles'
+  // F drifts from their positions as the strain grows (4.6 % at this stretch, 3.5 % at h / 2;
+  // docs/validation.md, case 6).
   CHECK(o.error < 0.03);
 }
 
