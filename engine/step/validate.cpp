@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <unordered_map>
@@ -108,9 +109,7 @@ std::vector<std::string> objects_near_buffer(const Simulation& sim) {
   const Grid& g = sim.grid();
   const Particles& p = sim.particles();
   const SceneDesc& scene = sim.scene();
-  const Real reach = scene.simulation.kernel == Kernel::linear      ? 1.0
-                     : scene.simulation.kernel == Kernel::quadratic ? 1.5
-                                                                    : 2.0;
+  const Real reach = 0.5 * kernel_nodes(scene.simulation.kernel);
   const std::vector<WallPlane> planes = build_wall_planes(scene.walls);
   const char* axis_name = "xyz";
   for (int a = 0; a < 3; ++a)
@@ -118,16 +117,9 @@ std::vector<std::string> objects_near_buffer(const Simulation& sim) {
       // The buffer's innermost node layer on this side, in grid units and in metres.
       const Real layer = side == 0 ? g.buffer : g.nodes[a] - 1 - g.buffer;
       const Real layer_x = g.origin[a] + layer * g.h[a];
-      // A wall whose solid side holds the buffer's layer already acts on those nodes.
-      bool covered = false;
-      for (const WallPlane& pl : planes) {
-        const Vec3 inward = side == 0 ? Vec3(Vec3::Unit(a)) : Vec3(-Vec3::Unit(a));
-        const Real at = (pl.point + pl.offset(0))[a];
-        const Real slack = 1e-9 * g.h[a];  // a wall written at the layer's coordinate
-        if (pl.normal.dot(inward) > 1 - 1e-9 &&
-            (side == 0 ? at >= layer_x - slack : at <= layer_x + slack))
-          covered = true;
-      }
+      const bool covered = std::any_of(planes.begin(), planes.end(), [&](const WallPlane& pl) {
+        return covers_buffer_side(pl, a, side, 0, g);
+      });
       if (covered) continue;
       std::vector<std::size_t> near(sim.objects().size(), 0);
       for (std::size_t q = 0; q < p.size(); ++q) {

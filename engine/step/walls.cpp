@@ -102,19 +102,27 @@ BufferLayers buffer_layers(const Grid& g) {
   return {Vec3i::Constant(g.buffer), g.nodes - Vec3i::Constant(1 + g.buffer)};
 }
 
+bool covers_buffer_side(const WallPlane& w, int axis, int side, Real time, const Grid& g) {
+  const Real inward = side == 0 ? w.normal[axis] : -w.normal[axis];
+  if (inward < 1 - Real(1e-9)) return false;
+  const Real layer = side == 0 ? g.buffer : g.nodes[axis] - 1 - g.buffer;
+  const Real at = ((w.point + w.offset(time))[axis] - g.origin[axis]) * g.inv_h[axis];
+  const Real slack = 1e-9;  // a wall written at the layer's coordinate
+  return side == 0 ? at >= layer - slack : at <= layer + slack;
+}
+
 BufferLayers buffer_layers_behind_walls(const std::vector<WallPlane>& planes, Real time,
                                         const Grid& g) {
   BufferLayers layers = buffer_layers(g);
-  for (const WallPlane& w : planes) {
-    int a;
-    if (w.normal.cwiseAbs().maxCoeff(&a) != 1) continue;
-    // The wall's node coordinate along its axis.
-    const Real at = ((w.point + w.offset(time))[a] - g.origin[a]) * g.inv_h[a];
-    if (w.normal[a] > 0 && at >= layers.low[a])
-      layers.low[a] = std::min(layers.low[a], static_cast<int>(std::floor(at)) - 2);
-    if (w.normal[a] < 0 && at <= layers.high[a])
-      layers.high[a] = std::max(layers.high[a], static_cast<int>(std::ceil(at)) + 2);
-  }
+  for (const WallPlane& w : planes)
+    for (int a = 0; a < 3; ++a) {
+      // The wall's node coordinate along its axis.
+      const Real at = ((w.point + w.offset(time))[a] - g.origin[a]) * g.inv_h[a];
+      if (covers_buffer_side(w, a, 0, time, g))
+        layers.low[a] = std::min(layers.low[a], static_cast<int>(std::floor(at)) - 2);
+      if (covers_buffer_side(w, a, 1, time, g))
+        layers.high[a] = std::max(layers.high[a], static_cast<int>(std::ceil(at)) + 2);
+    }
   return layers;
 }
 

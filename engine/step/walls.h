@@ -48,6 +48,10 @@ struct BufferLayers {
 /// The `buffer` cells of `grid` on every side.
 BufferLayers buffer_layers(const Grid& grid);
 
+/// True where plane wall `w` lies across `axis` with its solid side holding the grid's
+/// buffer layer on `side` (0: low, 1: high) at time `time`: it already acts on those nodes.
+bool covers_buffer_side(const WallPlane& w, int axis, int side, Real time, const Grid& grid);
+
 /// The buffer for contact at the particles at time `time`: on a side that a plane wall of
 /// `planes` covers (across the axis, its solid side holding the buffer's innermost layer), only
 /// the nodes more than two cells behind the wall, which no stencil of a particle on the free
