@@ -3,9 +3,10 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cmath>
 #include <limits>
-#include <unordered_map>
 
 #include "engine/core/hash.h"
 #include "engine/step/domain_quadrature.h"
@@ -13,6 +14,11 @@
 namespace mpm {
 
 namespace {
+
+/// The key contacts and kept impulses are ordered by: patch, then particle id.
+std::uint64_t contact_key(std::uint32_t patch, std::uint32_t id) {
+  return std::uint64_t{patch} << 32 | id;
+}
 
 /// One wall as the contact search sees it at one particle.
 struct WallHit {
@@ -44,28 +50,44 @@ struct ParticleRadius {
   }
 };
 
-/// How fast the grid can close a gap near a point: the fastest node with mass of each storage
-/// block, so that a particle still a gap away from a wall is dropped where every node of its
-/// stencil is slower than that gap over the substep (gather_stencils would drop it too: the
-/// velocity at its contact point is a mean of those nodes').
+/// How fast the grid can close a gap near a point: per storage block, the largest velocity
+/// component of its nodes with mass along each axis, either way, so that a particle still a gap
+/// away from a wall is dropped where every node of its stencil closes on the wall slower than
+/// that gap over the substep (gather_stencils would drop it too: the velocity at its contact
+/// point is a mean of those nodes').
 struct GridSpeed {
-  const Grid& g;            ///< The grid.
-  std::vector<Real> block;  ///< Per storage slot, its fastest node's speed, m/s.
+  const Grid& g;  ///< The grid.
+  /// Per storage slot, [2 a] the largest velocity component along +a of its nodes with mass
+  /// and [2 a + 1] along -a (at least 0), m/s.
+  std::vector<std::array<Real, 6>> block;
+  Real fastest = 0;  ///< The largest speed of any node with mass, m/s.
 
-  /// The block speeds of `grid`, in parallel over its blocks.
-  explicit GridSpeed(const Grid& grid) : g(grid), block(grid.active_blocks(), 0) {
+  /// The block maxima of `grid`, in parallel over its blocks.
+  explicit GridSpeed(const Grid& grid) : g(grid), block(grid.active_blocks()) {
     const std::ptrdiff_t nb = static_cast<std::ptrdiff_t>(block.size());
-#pragma omp parallel for schedule(static) if (nb * Grid::kBlockNodes >= kParallelMinItems)
+    const bool par = nb * Grid::kBlockNodes >= kParallelMinItems;
+    Real squared = 0;
+#pragma omp parallel for schedule(static) reduction(max : squared) if (par)
     for (std::ptrdiff_t b = 0; b < nb; ++b) {
-      Real fastest = 0;
-      for (std::ptrdiff_t i = b * Grid::kBlockNodes; i < (b + 1) * Grid::kBlockNodes; ++i)
-        if (g.mass[i] > 0) fastest = std::max(fastest, g.velocity[i].squaredNorm());
-      block[b] = std::sqrt(fastest);
+      std::array<Real, 6> most{};
+      for (std::ptrdiff_t i = b * Grid::kBlockNodes; i < (b + 1) * Grid::kBlockNodes; ++i) {
+        if (!(g.mass[i] > 0)) continue;
+        const Vec3& v = g.velocity[i];
+        for (int a = 0; a < 3; ++a) {
+          most[2 * a] = std::max(most[2 * a], v[a]);
+          most[2 * a + 1] = std::max(most[2 * a + 1], -v[a]);
+        }
+        squared = std::max(squared, v.squaredNorm());
+      }
+      block[b] = most;
     }
+    fastest = std::sqrt(squared);
   }
-  /// The fastest speed over every node within two cells of `x` (any kernel's stencil of a
-  /// point there), m/s: the blocks those nodes lie in (at most two per axis).
-  Real near(const Vec3& x) const {
+  /// The fastest any node within two cells of `x` (any kernel's stencil of a point there)
+  /// moves against the normal `n`, m/s (at least 0): over the blocks those nodes lie in (at
+  /// most two per axis), the sum over the axes of |n_a| times the largest component against
+  /// n_a, which bounds -v.n at every node.
+  Real near(const Vec3& x, const Vec3& n) const {
     const Vec3 f = (x - g.origin).cwiseProduct(g.inv_h);
     Vec3i lo, hi;
     for (int a = 0; a < 3; ++a) {
@@ -74,14 +96,18 @@ struct GridSpeed {
       hi[a] = std::min(cell + 2, g.nodes[a] - 1) >> Grid::kBlockBits;
       if (lo[a] > hi[a]) return 0;  // wholly outside the grid: no nodes
     }
-    Real fastest = 0;
+    Real fastest_in = 0;
     for (int i = lo.x(); i <= hi.x(); ++i)
       for (int j = lo.y(); j <= hi.y(); ++j)
         for (int k = lo.z(); k <= hi.z(); ++k) {
           const std::int32_t s = g.slot[g.page(i, j, k)];
-          if (s >= 0) fastest = std::max(fastest, block[s]);
+          if (s < 0) continue;
+          Real closing = 0;
+          for (int a = 0; a < 3; ++a)
+            closing += std::abs(n[a]) * block[s][n[a] > 0 ? 2 * a + 1 : 2 * a];
+          fastest_in = std::max(fastest_in, closing);
         }
-    return fastest;
+    return fastest_in;
   }
 };
 
@@ -129,7 +155,7 @@ void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt
          [&](std::ptrdiff_t q, std::uint32_t w, const WallHit& h) {
            if (h.distance >= radius.most(q) + walls[w].travel) return;
            const Real gap = h.distance - radius.along(q, h.normal);
-           if (gap > 0 && dt * (speed.near(h.point) + h.velocity.norm()) <= gap) return;
+           if (gap > 0 && dt * (speed.near(h.point, h.normal) + h.velocity.norm()) <= gap) return;
            mine.push_back({static_cast<std::uint32_t>(q), w, h, gap});
          });
   }
@@ -538,17 +564,49 @@ void gather_stencils(Real dt, const Particles& p, const Grid& g, ContactState& s
   compact_nodes(g, storage_index, st);
 }
 
-/// st.inv_k: the inverse row sums of W M^-1 W^T. A contact's step is its violation over its
-/// row sum, so the part of the impulses that is the same at every contact, a body pressing on
-/// the wall as a whole, is found in the first iteration, and no mode is overshot. `par`: in
-/// parallel.
-void row_sum_inverses(ContactState& st, bool par) {
+/// The stencil entries of the contacts of `st` by node: node i's are contact[first[i]] to
+/// contact[first[i + 1] - 1] with their weights, in contact order (node 0, none, has none).
+/// Each node then sums its own contacts' impulses: in parallel over the nodes, and in
+/// contact order whatever the thread count.
+struct NodeEntries {
+  std::vector<std::uint32_t> first;    ///< Per compact node, its first entry; and one more.
+  std::vector<std::uint32_t> contact;  ///< Each entry's contact.
+  std::vector<Real> weight;            ///< Each entry's stencil weight.
+
+  /// The entries of the contacts of `st`.
+  explicit NodeEntries(const ContactState& st) : first(st.node_velocity.size() + 1, 0) {
+    const int S = st.stencil;
+    const std::size_t ne = st.nodes.size();
+    for (std::size_t e = 0; e < ne; ++e)
+      if (st.nodes[e] != 0) ++first[st.nodes[e] + 1];
+    for (std::size_t i = 1; i < first.size(); ++i) first[i] += first[i - 1];
+    contact.resize(first.back());
+    weight.resize(first.back());
+    std::vector<std::uint32_t> fill(first.begin(), first.end() - 1);
+    for (std::size_t c = 0; c < st.size(); ++c)
+      for (int t = 0; t < S; ++t) {
+        const std::uint32_t i = st.nodes[c * S + t];
+        if (i == 0) continue;
+        contact[fill[i]] = static_cast<std::uint32_t>(c);
+        weight[fill[i]++] = st.weights[c * S + t];
+      }
+  }
+};
+
+/// st.inv_k: the inverse row sums of W M^-1 W^T (the stencils by node: `by_node`). A contact's
+/// step is its violation over its row sum, so the part of the impulses that is the same at
+/// every contact, a body pressing on the wall as a whole, is found in the first iteration, and
+/// no mode is overshot. `par`: in parallel.
+void row_sum_inverses(const NodeEntries& by_node, bool par, ContactState& st) {
   const int S = st.stencil;
-  const std::size_t nc = st.size();
-  const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(nc);
+  const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(st.size());
+  const std::ptrdiff_t nn = static_cast<std::ptrdiff_t>(st.node_velocity.size());
   const std::vector<Real>& inv_m = st.node_inv_mass;
-  std::vector<Real> share(st.node_velocity.size(), 0);
-  for (std::size_t e = 0; e < nc * S; ++e) share[st.nodes[e]] += st.weights[e];
+  std::vector<Real> share(nn, 0);
+#pragma omp parallel for schedule(static) if (par)
+  for (std::ptrdiff_t i = 1; i < nn; ++i)
+    for (std::uint32_t k = by_node.first[i]; k < by_node.first[i + 1]; ++k)
+      share[i] += by_node.weight[k];
 #pragma omp parallel for schedule(static) if (par)
   for (std::ptrdiff_t c = 0; c < sn; ++c) {
     Real k = 0;
@@ -575,11 +633,15 @@ void permute(const std::vector<std::uint32_t>& order, int stride, std::vector<T>
 /// order (with the warm start's memory kept per particle and wall, the pool at rest drifted
 /// apart between one and two ranks otherwise; docs/accuracy.md).
 void sort_contacts(ContactState& st) {
+  // Each contact's patch and id as one key, beside its index (a particle has one contact
+  // per patch, so the keys differ).
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> keys(st.size());
+  for (std::size_t c = 0; c < keys.size(); ++c)
+    keys[c] = {contact_key(st.patch[c], st.id[c]), static_cast<std::uint32_t>(c)};
+  if (std::is_sorted(keys.begin(), keys.end())) return;
+  std::sort(keys.begin(), keys.end());
   std::vector<std::uint32_t> order(st.size());
-  for (std::size_t c = 0; c < order.size(); ++c) order[c] = static_cast<std::uint32_t>(c);
-  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
-    return st.patch[a] != st.patch[b] ? st.patch[a] < st.patch[b] : st.id[a] < st.id[b];
-  });
+  for (std::size_t c = 0; c < order.size(); ++c) order[c] = keys[c].second;
   for (auto* v : {&st.particle, &st.id, &st.patch}) permute(order, 1, *v);
   for (auto* v : {&st.point, &st.normal, &st.wall_velocity}) permute(order, 1, *v);
   permute(order, 1, st.gap);
@@ -589,11 +651,12 @@ void sort_contacts(ContactState& st) {
   permute(order, st.stencil, st.weights);
 }
 
-/// The particles each merged contact stands for (merge_shared_stencils): the ids of merged
-/// contact g's are id[first[g]] to id[first[g + 1] - 1].
+/// The contacts as they were before merge_shared_stencils (in patch and particle id order),
+/// and the merged contact each went into.
 struct Members {
-  std::vector<std::uint32_t> first;  ///< Offsets into id, one per merged contact and one more.
-  std::vector<std::uint32_t> id;     ///< Particle ids.
+  std::vector<std::uint32_t> id;     ///< Particle id of each.
+  std::vector<std::uint32_t> patch;  ///< Its patch.
+  std::vector<std::uint32_t> group;  ///< Its merged contact.
 };
 
 /// Merges the contacts of `st` that share a patch and whose stencils reach the same nodes
@@ -623,25 +686,27 @@ Members merge_shared_stencils(ContactState& st) {
                         splitmix64((std::uint64_t{k.patch} << 32 | k.place) * 2 + k.touching));
     }
   };
-  std::unordered_map<Key, std::uint32_t, Hash> groups;
-  groups.reserve(nc);
-  std::vector<std::uint32_t> group(nc), leader;
+  // The groups in an open-addressed table (linear probing) of at least twice their number.
+  const std::size_t mask = std::bit_ceil(2 * nc + 1) - 1;
+  constexpr std::uint32_t kEmpty = ~std::uint32_t{0};
+  std::vector<std::uint32_t> table(mask + 1, kEmpty), leader;
+  std::vector<Key> keys;
+  Members m{st.id, st.patch, std::vector<std::uint32_t>(nc)};
   for (std::size_t c = 0; c < nc; ++c) {
     std::uint32_t t = 0;
     while (t + 1 < static_cast<std::uint32_t>(S) && st.nodes[c * S + t] == 0) ++t;
     const Key k{st.node_key[st.nodes[c * S + t]], t, st.patch[c], st.gap[c] <= 0};
-    const auto [it, added] = groups.emplace(k, static_cast<std::uint32_t>(leader.size()));
-    if (added) leader.push_back(static_cast<std::uint32_t>(c));
-    group[c] = it->second;
+    std::size_t h = Hash{}(k);
+    h &= mask;
+    while (table[h] != kEmpty && !(keys[table[h]] == k)) h = (h + 1) & mask;
+    if (table[h] == kEmpty) {
+      table[h] = static_cast<std::uint32_t>(leader.size());
+      leader.push_back(static_cast<std::uint32_t>(c));
+      keys.push_back(k);
+    }
+    m.group[c] = table[h];
   }
   const std::size_t ng = leader.size();
-  Members m;
-  m.first.assign(ng + 1, 0);
-  for (std::size_t c = 0; c < nc; ++c) ++m.first[group[c] + 1];
-  for (std::size_t g = 0; g < ng; ++g) m.first[g + 1] += m.first[g];
-  m.id.resize(nc);
-  std::vector<std::uint32_t> fill(m.first.begin(), m.first.end() - 1);
-  for (std::size_t c = 0; c < nc; ++c) m.id[fill[group[c]]++] = st.id[c];
   if (ng == nc) {
     st.count.assign(nc, 1);
     return m;
@@ -650,7 +715,7 @@ Members merge_shared_stencils(ContactState& st) {
   std::vector<Real> gap(ng, std::numeric_limits<Real>::max()), weights(ng * S, 0);
   st.count.assign(ng, 0);
   for (std::size_t c = 0; c < nc; ++c) {
-    const std::uint32_t g = group[c];
+    const std::uint32_t g = m.group[c];
     normal[g] += st.normal[c];
     wall_velocity[g] += st.wall_velocity[c];
     gap[g] = std::min(gap[g], st.gap[c]);
@@ -679,74 +744,26 @@ Members merge_shared_stencils(ContactState& st) {
   return m;
 }
 
-/// Per patch (wall and object): the friction capacity `load`, the sum of mu times the normal
-/// impulses `ln` of its rubbing contacts, and the number of particles they stand for `rubbers`.
-void patch_loads(const ContactState& st, const std::vector<Real>& ln, std::vector<Real>& load,
-                 std::vector<Real>& rubbers) {
-  std::fill(load.begin(), load.end(), 0);
-  std::fill(rubbers.begin(), rubbers.end(), 0);
-  for (std::size_t c = 0; c < st.size(); ++c)
-    if (rubs(st, c) && !held(st, c)) {
-      load[st.patch[c]] += st.friction[c] * std::max(ln[c], Real(0));
-      rubbers[st.patch[c]] += st.count[c];
-    }
-}
-
-/// What the contacts of one iteration add up at a node: the normal and held impulses' change
-/// `step`, the friction requests `trial` and the friction capacity `cap`.
-struct NodeSums {
-  Vec3 step;   ///< N s.
-  Vec3 trial;  ///< N s.
-  Real cap;    ///< N s.
-};
-
-/// Contacts per scatter chunk, and the most chunks (neither depends on the thread count).
-constexpr std::ptrdiff_t kScatterChunk = 2048, kMaxChunks = 8;
-
-/// Contacts [first, last) of one iteration: takes their normal impulses `ln` and adds their
-/// impulse changes, friction requests `ask` and capacity shares (`load` over `rubbers` of
-/// their patch) into `sums` (one per compact node, zeroed here). Returns the moving walls'
-/// work of the normal and held impulses.
-Real scatter_chunk(ContactState& st, const std::vector<Real>& ln, const std::vector<Vec3>& ask,
-                   const std::vector<Real>& load, const std::vector<Real>& rubbers,
-                   std::ptrdiff_t first, std::ptrdiff_t last, NodeSums* sums) {
-  const int S = st.stencil;
-  std::fill(sums, sums + st.node_velocity.size(), NodeSums{Vec3::Zero(), Vec3::Zero(), 0});
-  Real work = 0;
-  for (std::ptrdiff_t c = first; c < last; ++c) {
-    const Real dn = ln[c] - st.normal_impulse[c];
-    st.normal_impulse[c] = ln[c];
-    work += dn * st.normal[c].dot(st.wall_velocity[c]);
-    const bool hold = held(st, c);
-    if (hold) work += ask[c].dot(st.wall_velocity[c]);
-    const bool rub = !hold && rubs(st, c);
-    const Vec3 push = dn * st.normal[c] + (hold ? ask[c] : Vec3::Zero());
-    const Real share = rub ? st.count[c] * load[st.patch[c]] / rubbers[st.patch[c]] : 0;
-    for (int t = 0; t < S; ++t) {
-      NodeSums& n = sums[st.nodes[c * S + t]];
-      const Real w = st.weights[c * S + t];
-      n.step += w * push;
-      if (!rub) continue;
-      n.trial += w * ask[c];
-      n.cap += w * share;
-    }
-  }
-  return work;
-}
-
 /// Starts each contact of `st` from its particles' (`members`) normal impulses on the same wall
-/// in the last substep (`memory`), applied to the node velocities in contact order. Returns the
-/// moving walls' work of those impulses.
+/// in the last substep (`memory`, in the same order: one pass over both), applied to the node
+/// velocities in contact order. Returns the moving walls' work of those impulses.
 Real warm_start(Real dt, const ContactMemory& memory, const Members& members, ContactState& st) {
   const int S = st.stencil;
   Real work = 0;
   st.normal_impulse.assign(st.size(), 0);
+  if (memory.dt > 0) {
+    std::size_t k = 0;
+    const std::size_t kept = memory.ids.size();
+    for (std::size_t c = 0; c < members.id.size(); ++c) {
+      const std::uint64_t want = contact_key(members.patch[c], members.id[c]);
+      while (k < kept && contact_key(memory.patches[k], memory.ids[k]) < want) ++k;
+      if (k < kept && contact_key(memory.patches[k], memory.ids[k]) == want)
+        st.normal_impulse[members.group[c]] += memory.impulses[k] * dt / memory.dt;  // same force
+    }
+  }
   for (std::size_t c = 0; c < st.size(); ++c) {
-    Real start = 0;
-    for (std::uint32_t e = members.first[c]; e < members.first[c + 1]; ++e)
-      start += memory.start(members.id[e], st.patch[c], dt);
+    const Real start = st.normal_impulse[c];
     if (start == 0) continue;
-    st.normal_impulse[c] = start;
     work += start * st.normal[c].dot(st.wall_velocity[c]);
     for (int t = 0; t < S; ++t) {
       const std::uint32_t i = st.nodes[c * S + t];
@@ -776,64 +793,15 @@ struct Chebyshev {
   }
 };
 
-/// The friction at the nodes over one solve: each node's accumulated friction impulse, and the
-/// weights and weighted wall velocities of its rubbing contacts (which contacts rub does not
-/// change within a substep).
-struct NodeFriction {
-  std::vector<Vec3> friction;  ///< Accumulated friction impulse, N s.
-  std::vector<Vec3> wall_v;    ///< Sum of the rubbing contacts' weights times wall velocities.
-  std::vector<Real> rubbing;   ///< Sum of the rubbing contacts' weights.
-  std::vector<Vec3> earlier;   ///< The accumulated friction impulse an iteration before.
-
-  /// No friction yet, at the nodes of `st`.
-  explicit NodeFriction(const ContactState& st)
-      : friction(st.node_velocity.size(), Vec3::Zero()),
-        wall_v(st.node_velocity.size(), Vec3::Zero()),
-        rubbing(st.node_velocity.size(), 0),
-        earlier(st.node_velocity.size(), Vec3::Zero()) {
-    const int S = st.stencil;
-    for (std::size_t c = 0; c < st.size(); ++c)
-      if (!held(st, c) && rubs(st, c))
-        for (int t = 0; t < S; ++t) {
-          const std::uint32_t i = st.nodes[c * S + t];
-          const Real w = st.count[c] * st.weights[c * S + t];
-          wall_v[i] += w * st.wall_velocity[c];
-          rubbing[i] += w;
-        }
-  }
-
-  /// Adds the `chunks` chunks' `sums` at each node of `st` (in chunk order), keeps the
-  /// friction within its capacity, extrapolates it by the Chebyshev weight `omega` (and keeps
-  /// it within its capacity again), and changes the node velocities by the impulses; adds the
-  /// moving walls' work of the friction to `work`. Returns the largest squared velocity change.
-  Real apply(const std::vector<NodeSums>& sums, std::ptrdiff_t chunks, bool par, Real omega,
-             ContactState& st, Real& work) {
-    const std::size_t nn = st.node_velocity.size();
-    const std::ptrdiff_t snn = static_cast<std::ptrdiff_t>(nn);
-    Real node_work = 0, change = 0;
-#pragma omp parallel for schedule(static) reduction(+ : node_work) reduction(max : change) if (par)
-    for (std::ptrdiff_t i = 0; i < snn; ++i) {
-      NodeSums total = sums[i];
-      for (std::ptrdiff_t k = 1; k < chunks; ++k) {
-        const NodeSums& more = sums[k * nn + i];
-        total.step += more.step;
-        total.trial += more.trial;
-        total.cap += more.cap;
-      }
-      const Vec3 f =
-          within(total.cap,
-                 omega * (within(total.cap, friction[i] + total.trial) - earlier[i]) + earlier[i]);
-      earlier[i] = friction[i];
-      const Vec3 df = f - friction[i];
-      friction[i] = f;
-      if (rubbing[i] > 0) node_work += df.dot(wall_v[i]) / rubbing[i];
-      const Vec3 dv = (total.step + df) * st.node_inv_mass[i];
-      st.node_velocity[i] += dv;
-      change = std::max(change, dv.squaredNorm());
-    }
-    work += node_work;
-    return change;
-  }
+/// What one contact's nodes take of an iteration, in one cache line: its normal (and held)
+/// impulse change and, if it rubs (friction, not held), its friction request and its share of
+/// its patch's capacity.
+struct alignas(64) ToNodes {
+  Vec3 push = Vec3::Zero();   ///< Change of the normal impulse along the normal, plus a held
+                              ///< contact's tangential change, N s.
+  Real share = 0;             ///< Share of the patch's friction capacity, N s.
+  Vec3 trial = Vec3::Zero();  ///< Friction request, N s.
+  bool rubs = false;          ///< Whether it rubs.
 };
 
 /// One iteration's requests of every contact, and what Chebyshev's acceleration keeps of the
@@ -843,61 +811,176 @@ struct NodeFriction {
 struct ContactSteps {
   std::vector<Real> ln;            ///< Normal impulses after this iteration, N s.
   std::vector<Vec3> ask;           ///< Tangential requests (held: impulse changes), N s.
+  std::vector<Real> dn;            ///< This iteration's change of the normal impulses, N s.
+  /// What each contact's nodes take of this iteration (ToNodes), side by side.
+  std::vector<ToNodes> to_nodes;
   std::vector<Real> earlier;       ///< Normal impulses an iteration before, N s.
   std::vector<Vec3> held_impulse;  ///< A held contact's tangential impulse, N s.
   std::vector<Vec3> held_earlier;  ///< The same an iteration before, N s.
+  std::vector<Real> load;          ///< Per patch, mu times its rubbing contacts' normal impulses.
+  std::vector<Real> rubbers;       ///< Per patch, the particles its rubbing contacts stand for.
 
   /// Nothing asked yet, from the warm-started impulses of `st`.
   explicit ContactSteps(const ContactState& st)
       : ln(st.size()),
         ask(st.size()),
+        dn(st.size()),
+        to_nodes(st.size()),
         earlier(st.normal_impulse),
         held_impulse(st.size(), Vec3::Zero()),
-        held_earlier(st.size(), Vec3::Zero()) {}
+        held_earlier(st.size(), Vec3::Zero()),
+        load(st.patches),
+        rubbers(st.patches) {
+    for (std::size_t c = 0; c < st.size(); ++c) to_nodes[c].rubs = !held(st, c) && rubs(st, c);
+  }
 
-  /// Each contact's projected Jacobi step from the velocities `u` at the contact points,
+  /// Each contact's projected Jacobi step from the velocity interpolated at its contact point,
   /// extrapolated by the Chebyshev weight `omega` from the iterate before the last and
-  /// projected again. Sets `residual` to the largest violation at `u` (violation); returns the
-  /// largest impulse change or request.
-  Real take(const ContactState& st, const std::vector<Vec3>& u, Real dt, Real omega, bool par,
-            Real& residual) {
+  /// projected again; the change is taken into st.normal_impulse and `to_nodes`. Sets
+  /// `residual` to the largest violation before the step (violation); returns the largest
+  /// impulse change or request.
+  Real take(ContactState& st, Real dt, Real omega, bool par, Real& residual) {
+    const int S = st.stencil;
     const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(st.size());
     Real largest = 0, worst = 0;
 #pragma omp parallel for schedule(static) reduction(max : largest, worst) if (par)
     for (std::ptrdiff_t c = 0; c < sn; ++c) {
-      worst = std::max(worst, violation(st, c, u[c]));
-      const Real step = normal_impulse(st, c, u[c], dt);
+      Vec3 u = Vec3::Zero();
+      for (int t = 0; t < S; ++t)
+        u += st.weights[c * S + t] * st.node_velocity[st.nodes[c * S + t]];
+      worst = std::max(worst, violation(st, c, u));
+      const Real step = normal_impulse(st, c, u, dt);
       const Real extrapolated = omega * (step - earlier[c]) + earlier[c];
-      ln[c] = held(st, c) ? extrapolated : std::max(extrapolated, Real(0));
+      const bool hold = held(st, c);
+      ln[c] = hold ? extrapolated : std::max(extrapolated, Real(0));
       earlier[c] = st.normal_impulse[c];
       const Vec3& n = st.normal[c];
-      const Vec3 ur = u[c] - st.wall_velocity[c];
+      const Vec3 ur = u - st.wall_velocity[c];
       ask[c] = rubs(st, c) ? Vec3(-(ur - ur.dot(n) * n) * st.inv_k[c]) : Vec3::Zero();
-      if (held(st, c)) {  // its tangential impulse, accumulated, extrapolated alike
+      if (hold) {  // its tangential impulse, accumulated, extrapolated alike
         const Vec3 t = omega * (held_impulse[c] + ask[c] - held_earlier[c]) + held_earlier[c];
         held_earlier[c] = held_impulse[c];
         ask[c] = t - held_impulse[c];
         held_impulse[c] = t;
       }
-      largest = std::max({largest, std::abs(ln[c] - st.normal_impulse[c]), ask[c].norm()});
+      dn[c] = ln[c] - st.normal_impulse[c];
+      largest = std::max({largest, std::abs(dn[c]), ask[c].norm()});
+      to_nodes[c].push = dn[c] * n + (hold ? ask[c] : Vec3::Zero());
+      to_nodes[c].trial = ask[c];
+      st.normal_impulse[c] = ln[c];
     }
     residual = worst;
     return largest;
+  }
+
+  /// The moving walls' work of this iteration's normal and held impulses, in contact order
+  /// (after take()).
+  Real work(const ContactState& st) const {
+    Real sum = 0;
+    for (std::size_t c = 0; c < st.size(); ++c) {
+      sum += dn[c] * st.normal[c].dot(st.wall_velocity[c]);
+      if (held(st, c)) sum += ask[c].dot(st.wall_velocity[c]);
+    }
+    return sum;
+  }
+
+  /// Each rubbing contact's share of its patch's friction capacity: mu times the normal
+  /// impulses of the patch's rubbing contacts, spread evenly over the particles they stand for.
+  void share_capacity(const ContactState& st) {
+    std::fill(load.begin(), load.end(), 0);
+    std::fill(rubbers.begin(), rubbers.end(), 0);
+    for (std::size_t c = 0; c < st.size(); ++c)
+      if (to_nodes[c].rubs) {
+        load[st.patch[c]] += st.friction[c] * std::max(ln[c], Real(0));
+        rubbers[st.patch[c]] += st.count[c];
+      }
+    for (std::size_t c = 0; c < st.size(); ++c)
+      if (to_nodes[c].rubs)
+        to_nodes[c].share = st.count[c] * load[st.patch[c]] / rubbers[st.patch[c]];
+  }
+};
+
+/// The friction at the nodes over one solve: each node's accumulated friction impulse, and the
+/// weights and weighted wall velocities of its rubbing contacts (which contacts rub does not
+/// change within a substep).
+struct NodeFriction {
+  std::vector<Vec3> friction;   ///< Accumulated friction impulse, N s.
+  std::vector<Vec3> wall_v;     ///< Sum of the rubbing contacts' weights times wall velocities.
+  std::vector<Real> rubbing;    ///< Sum of the rubbing contacts' weights.
+  std::vector<Vec3> earlier;    ///< The accumulated friction impulse an iteration before.
+  std::vector<Real> node_work;  ///< The moving walls' work of each node's last friction change.
+
+  /// No friction yet, at the nodes of `st` (their stencil entries `by_node`; which contacts
+  /// rub: `contacts`).
+  NodeFriction(const ContactState& st, const NodeEntries& by_node,
+               const std::vector<ToNodes>& contacts, bool par)
+      : friction(st.node_velocity.size(), Vec3::Zero()),
+        wall_v(st.node_velocity.size(), Vec3::Zero()),
+        rubbing(st.node_velocity.size(), 0),
+        earlier(st.node_velocity.size(), Vec3::Zero()),
+        node_work(st.node_velocity.size(), 0) {
+    const std::ptrdiff_t nn = static_cast<std::ptrdiff_t>(st.node_velocity.size());
+#pragma omp parallel for schedule(static) if (par)
+    for (std::ptrdiff_t i = 1; i < nn; ++i)
+      for (std::uint32_t k = by_node.first[i]; k < by_node.first[i + 1]; ++k) {
+        const std::uint32_t c = by_node.contact[k];
+        if (!contacts[c].rubs) continue;
+        const Real w = st.count[c] * by_node.weight[k];
+        wall_v[i] += w * st.wall_velocity[c];
+        rubbing[i] += w;
+      }
+  }
+
+  /// Sums at each node of `st` what its contacts (`by_node`) give it this iteration (`steps`'
+  /// to_nodes: impulse changes, and the friction requests and capacity shares of those that
+  /// rub), keeps the friction within its capacity, extrapolates it by the Chebyshev weight `omega`
+  /// (and keeps it within its capacity again), and changes the node velocities by the impulses;
+  /// adds the moving walls' work of the friction to `work`, in node order (`moving`: any wall
+  /// moves). Returns the largest squared velocity change.
+  Real apply(const NodeEntries& by_node, const ContactSteps& steps, bool par, bool moving,
+             Real omega, ContactState& st, Real& work) {
+    const std::ptrdiff_t nn = static_cast<std::ptrdiff_t>(st.node_velocity.size());
+    Real change = 0;
+#pragma omp parallel for schedule(static) reduction(max : change) if (par)
+    for (std::ptrdiff_t i = 1; i < nn; ++i) {
+      Vec3 step = Vec3::Zero(), trial = Vec3::Zero();
+      Real cap = 0;
+      for (std::uint32_t k = by_node.first[i]; k < by_node.first[i + 1]; ++k) {
+        const std::uint32_t c = by_node.contact[k];
+        const Real w = by_node.weight[k];
+        const ToNodes& from = steps.to_nodes[c];
+        step += w * from.push;
+        if (!from.rubs) continue;
+        trial += w * from.trial;
+        cap += w * from.share;
+      }
+      const Vec3 f =
+          within(cap, omega * (within(cap, friction[i] + trial) - earlier[i]) + earlier[i]);
+      earlier[i] = friction[i];
+      const Vec3 df = f - friction[i];
+      friction[i] = f;
+      if (moving && rubbing[i] > 0) node_work[i] = df.dot(wall_v[i]) / rubbing[i];
+      const Vec3 dv = (step + df) * st.node_inv_mass[i];
+      st.node_velocity[i] += dv;
+      change = std::max(change, dv.squaredNorm());
+    }
+    if (moving) {
+      Real sum = 0;
+      for (std::ptrdiff_t i = 1; i < nn; ++i)
+        if (rubbing[i] > 0) sum += node_work[i];
+      work += sum;
+    }
+    return change;
   }
 };
 
 /// Keeps each particle's equal share of its merged contact's (`members`) normal impulse in
 /// `memory`, for the next substep's warm start.
-void keep_impulses(const Members& members, const ContactState& st, Real dt,
-                   ContactMemory& memory) {
-  std::vector<std::uint32_t> patch(members.id.size());
+void keep_impulses(const Members& members, const ContactState& st, Real dt, ContactMemory& memory) {
   std::vector<Real> impulse(members.id.size());
-  for (std::size_t c = 0; c < st.size(); ++c)
-    for (std::uint32_t e = members.first[c]; e < members.first[c + 1]; ++e) {
-      patch[e] = st.patch[c];
-      impulse[e] = st.normal_impulse[c] / (members.first[c + 1] - members.first[c]);
-    }
-  memory.keep(members.id, patch, impulse, dt);
+  for (std::size_t c = 0; c < impulse.size(); ++c)
+    impulse[c] = st.normal_impulse[members.group[c]] / st.count[members.group[c]];
+  memory.keep(members.id, members.patch, impulse, dt);
 }
 
 }  // namespace
@@ -909,24 +992,12 @@ Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
   const int S = st.stencil;
   const std::size_t nc = st.size();
   const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(nc);
-  const std::size_t nn = st.node_velocity.size();
   st.inv_k.assign(nc, 0);
-  // The iterations' loops are short: threads only pay off for large contact sets (each
-  // parallel loop is a fork and a barrier, a dozen times per iteration).
-  const bool par = sn * S >= 32 * kParallelMinItems;
-  const std::vector<Vec3>& v = st.node_velocity;
-  std::vector<Vec3> u(nc);
-  const auto interpolate = [&] {
-#pragma omp parallel for schedule(static) if (par)
-    for (std::ptrdiff_t c = 0; c < sn; ++c) {
-      Vec3 sum = Vec3::Zero();
-      for (int t = 0; t < S; ++t) sum += st.weights[c * S + t] * v[st.nodes[c * S + t]];
-      u[c] = sum;
-    }
-  };
+  // Two parallel loops an iteration, each a fork and a barrier.
+  const bool par = sn * S >= kParallelMinItems;
   Real work = warm_start(dt, memory, members, st);
-  interpolate();
-  row_sum_inverses(st, par);
+  const NodeEntries by_node(st);
+  row_sum_inverses(by_node, par, st);
   // Friction is Coulomb's law on the traction, a field over the contact. A particle's own
   // normal impulse is one of many equivalent splits of it among the particles that share
   // nodes (W M^-1 W^T is singular there), so the law is applied at the nodes: each contact
@@ -937,30 +1008,21 @@ Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
   // their nodes or 4^3-node blocks, let a block on an incline creep (docs/accuracy.md). Sliding
   // everywhere, the total is mu times the total normal impulse exactly. A touching particle
   // of a sticky wall is held directly.
-  NodeFriction friction(st);
   ContactSteps steps(st);
-  std::vector<Real> load(st.patches), rubbers(st.patches);
-  // The scatter runs in fixed chunks of the contacts, each into its own sums, added in chunk
-  // order: the same sums on any thread count.
-  const std::ptrdiff_t chunks = std::clamp<std::ptrdiff_t>(sn / kScatterChunk, 1, kMaxChunks);
-  std::vector<NodeSums> sums(static_cast<std::size_t>(chunks) * nn);
-  std::vector<Real> chunk_work(chunks);
+  NodeFriction friction(st, by_node, steps.to_nodes, par);
+  const bool moving = std::any_of(st.wall_velocity.begin(), st.wall_velocity.end(),
+                                  [](const Vec3& w) { return w != Vec3::Zero(); });
   Real first_change = 0;
   Chebyshev chebyshev{settings.spectral_radius};
   Real residual = 0;
   int it = 0;
   for (; it < settings.iterations; ++it) {
-    if (it > 0) interpolate();
     const Real omega = chebyshev.next(it);
-    const Real largest = steps.take(st, u, dt, omega, par, residual);
+    const Real largest = steps.take(st, dt, omega, par, residual);
     if (largest == 0) break;
-    patch_loads(st, steps.ln, load, rubbers);
-#pragma omp parallel for schedule(static) if (par && chunks > 1)
-    for (std::ptrdiff_t k = 0; k < chunks; ++k)
-      chunk_work[k] = scatter_chunk(st, steps.ln, steps.ask, load, rubbers, sn * k / chunks,
-                                    sn * (k + 1) / chunks, &sums[k * nn]);
-    for (const Real w : chunk_work) work += w;
-    const Real change = friction.apply(sums, chunks, par, omega, st, work);
+    if (moving) work += steps.work(st);
+    steps.share_capacity(st);
+    const Real change = friction.apply(by_node, steps, par, moving, omega, st, work);
     // Converged when the velocity changes have fallen by the settings' factor.
     if (it == 0) first_change = change;
     if (change <= settings.tolerance * settings.tolerance * first_change) break;
@@ -972,25 +1034,20 @@ Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
   return work;
 }
 
-Real ContactMemory::start(std::uint32_t id, std::uint32_t patch, Real step) const {
-  const auto it = by_key_.find(std::uint64_t{id} << 32 | patch);
-  if (it == by_key_.end() || !(dt > 0)) return 0;
-  return it->second * step / dt;  // the same force over the new substep
-}
-
 void ContactMemory::keep(const std::vector<std::uint32_t>& id,
                          const std::vector<std::uint32_t>& patch, const std::vector<Real>& impulse,
                          Real step) {
-  ids.clear();
-  patches.clear();
-  impulses.clear();
-  by_key_.clear();
-  for (std::size_t c = 0; c < id.size(); ++c) {
-    if (!(impulse[c] > 0)) continue;
-    ids.push_back(id[c]);
-    patches.push_back(patch[c]);
-    impulses.push_back(impulse[c]);
-    by_key_[std::uint64_t{id[c]} << 32 | patch[c]] = impulse[c];
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> kept;
+  for (std::uint32_t c = 0; c < id.size(); ++c)
+    if (impulse[c] > 0) kept.push_back({contact_key(patch[c], id[c]), c});
+  if (!std::is_sorted(kept.begin(), kept.end())) std::sort(kept.begin(), kept.end());
+  ids.resize(kept.size());
+  patches.resize(kept.size());
+  impulses.resize(kept.size());
+  for (std::size_t k = 0; k < kept.size(); ++k) {
+    ids[k] = id[kept[k].second];
+    patches[k] = patch[kept[k].second];
+    impulses[k] = impulse[kept[k].second];
   }
   dt = step;
 }
@@ -1035,8 +1092,7 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
   // than dt times the fastest node plus the wall's speed, and never a cell.
   const Real cell = g.h.maxCoeff();
   const GridSpeed speed(g);
-  const Real fastest =
-      speed.block.empty() ? Real(0) : *std::max_element(speed.block.begin(), speed.block.end());
+  const Real fastest = speed.fastest;
   const auto travel = [&](Real wall_speed) { return std::min(cell, dt * (fastest + wall_speed)); };
   const ParticleRadius particle_radius{p, radius, st.rest_depth};
   // The planes, in one pass over the particles. A plane that coincides with one listed

@@ -38,7 +38,6 @@
 /// which a ball rolling on its particles hops and loses energy (docs/accuracy.md).
 
 #include <cstdint>
-#include <unordered_map>
 #include <vector>
 
 #include "engine/core/particles.h"
@@ -73,22 +72,17 @@ struct ContactSolveStats {
 /// instead of finding the whole weight again (docs/accuracy.md: without it, the pool at rest
 /// drifts by the part left unsolved in every substep).
 struct ContactMemory {
-  std::vector<std::uint32_t> ids;      ///< Particle id of each kept impulse, in contact order.
+  std::vector<std::uint32_t> ids;      ///< Particle id of each kept impulse, by patch then id.
   std::vector<std::uint32_t> patches;  ///< Its patch (wall and object).
   std::vector<Real> impulses;          ///< Its normal impulse there, N s.
   Real dt = 0;                         ///< The substep those impulses were found in, s.
   ContactSolveStats stats;             ///< The solves so far (not written to checkpoints).
 
-  /// The impulse to start contact `patch` of particle `id` from, for a substep of `dt`.
-  Real start(std::uint32_t id, std::uint32_t patch, Real dt) const;
-  /// Replaces the entries by the `impulses` of the contacts of particles `id` on `patches`
-  /// (one per particle and patch: a particle in a corner, or on two walls that coincide, keeps
-  /// one for each wall).
+  /// Replaces the entries by the positive `impulses` of the contacts of particles `id` on
+  /// `patches` (one per particle and patch: a particle in a corner, or on two walls that
+  /// coincide, keeps one for each wall), put in order of patch and id.
   void keep(const std::vector<std::uint32_t>& id, const std::vector<std::uint32_t>& patches,
             const std::vector<Real>& impulses, Real dt);
-
- private:
-  std::unordered_map<std::uint64_t, Real> by_key_;  // (id << 32 | patch) -> impulse
 };
 
 /// Settings of the contact solve (the scene's defaults: simulation.contact_iterations and
