@@ -120,6 +120,29 @@ struct WallReach {
   std::uint32_t index;  ///< Its index among the scene's planes, then colliders (its patches).
 };
 
+/// Copies contact `from`'s per-contact fields (not its stencil) over contact `to`'s.
+void copy_contact(ContactState& st, std::size_t from, std::size_t to) {
+  st.particle[to] = st.particle[from];
+  st.id[to] = st.id[from];
+  st.point[to] = st.point[from];
+  st.normal[to] = st.normal[from];
+  st.wall_velocity[to] = st.wall_velocity[from];
+  st.gap[to] = st.gap[from];
+  st.boundary[to] = st.boundary[from];
+  st.friction[to] = st.friction[from];
+  st.patch[to] = st.patch[from];
+}
+
+/// Keeps the first `n` contacts' per-contact fields, or adds room for more (not their
+/// stencils).
+void resize_contacts(ContactState& st, std::size_t n) {
+  for (auto* v : {&st.particle, &st.id, &st.patch}) v->resize(n);
+  for (auto* v : {&st.point, &st.normal, &st.wall_velocity}) v->resize(n);
+  st.gap.resize(n);
+  st.boundary.resize(n);
+  st.friction.resize(n);
+}
+
 /// A particle that `hit` found within reach of a wall, before it is appended to the contacts.
 struct Candidate {
   std::uint32_t particle;  ///< The particle.
@@ -146,11 +169,14 @@ void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt
       kRestDepthCap * *std::max_element(radius.half_spacing.begin(), radius.half_spacing.end());
   std::vector<Real> reach(walls.size());
   for (std::size_t w = 0; w < walls.size(); ++w) reach[w] = widest + walls[w].travel;
-  std::vector<std::vector<Candidate>> found(threads);
+  const std::size_t nw = walls.size(), objects = radius.half_spacing.size(), base = st.size();
+  // Where each thread's contacts on each wall go: wall by wall, and within a wall thread by
+  // thread (at[w * threads + t]).
+  std::vector<std::size_t> at(nw * threads + 1, 0);
 #pragma omp parallel num_threads(threads)
   {
     const int t = omp_get_thread_num();
-    auto& mine = found[t];
+    std::vector<Candidate> mine;
     scan(n * t / threads, n * (t + 1) / threads, reach,
          [&](std::ptrdiff_t q, std::uint32_t w, const WallHit& h) {
            if (h.distance >= radius.most(q) + walls[w].travel) return;
@@ -158,23 +184,30 @@ void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt
            if (gap > 0 && dt * (speed.near(h.point, h.normal) + h.velocity.norm()) <= gap) return;
            mine.push_back({static_cast<std::uint32_t>(q), w, h, gap});
          });
+    for (const Candidate& c : mine) ++at[c.wall * threads + t + 1];
+#pragma omp barrier
+#pragma omp single
+    {
+      at[0] = base;
+      for (std::size_t k = 1; k < at.size(); ++k) at[k] += at[k - 1];
+      resize_contacts(st, at.back());
+    }  // (a barrier)
+    std::vector<std::size_t> next(nw);
+    for (std::size_t w = 0; w < nw; ++w) next[w] = at[w * threads + t];
+    for (const Candidate& c : mine) {
+      const std::size_t k = next[c.wall]++;
+      const std::uint32_t q = c.particle;
+      st.particle[k] = q;
+      st.id[k] = p.id[q];
+      st.point[k] = c.hit.point;
+      st.normal[k] = c.hit.normal;
+      st.wall_velocity[k] = c.hit.velocity;
+      st.gap[k] = c.gap;
+      st.boundary[k] = walls[c.wall].boundary;
+      st.friction[k] = walls[c.wall].friction;
+      st.patch[k] = walls[c.wall].index * static_cast<std::uint32_t>(objects) + p.object[q];
+    }
   }
-  const std::size_t objects = radius.half_spacing.size();
-  for (std::uint32_t w = 0; w < walls.size(); ++w)
-    for (const auto& chunk : found)
-      for (const Candidate& c : chunk) {
-        if (c.wall != w) continue;
-        const std::uint32_t q = c.particle;
-        st.particle.push_back(q);
-        st.id.push_back(p.id[q]);
-        st.point.push_back(c.hit.point);
-        st.normal.push_back(c.hit.normal);
-        st.wall_velocity.push_back(c.hit.velocity);
-        st.gap.push_back(c.gap);
-        st.boundary.push_back(walls[w].boundary);
-        st.friction.push_back(walls[w].friction);
-        st.patch.push_back(walls[w].index * static_cast<std::uint32_t>(objects) + p.object[q]);
-      }
 }
 
 /// Scans particles [first, last) of `x` against the planes of normals `normal` through
@@ -374,28 +407,6 @@ void ghost_weights(const Stencil<KernelTraits<K>::kNodes>& s, const Vec3& point,
 
 /// A stencil node that takes no part in a contact (outside the grid, unallocated or massless).
 constexpr std::size_t kNoNode = Grid::kNoStorage;
-
-/// Copies contact `from`'s per-contact fields (not its stencil) over contact `to`'s.
-void copy_contact(ContactState& st, std::size_t from, std::size_t to) {
-  st.particle[to] = st.particle[from];
-  st.id[to] = st.id[from];
-  st.point[to] = st.point[from];
-  st.normal[to] = st.normal[from];
-  st.wall_velocity[to] = st.wall_velocity[from];
-  st.gap[to] = st.gap[from];
-  st.boundary[to] = st.boundary[from];
-  st.friction[to] = st.friction[from];
-  st.patch[to] = st.patch[from];
-}
-
-/// Keeps the first `n` contacts' per-contact fields (not their stencils).
-void resize_contacts(ContactState& st, std::size_t n) {
-  for (auto* v : {&st.particle, &st.id, &st.patch}) v->resize(n);
-  for (auto* v : {&st.point, &st.normal, &st.wall_velocity}) v->resize(n);
-  st.gap.resize(n);
-  st.boundary.resize(n);
-  st.friction.resize(n);
-}
 
 /// Keeps only the contacts that act (`acts`; st's arrays, the stencil weights and the grid
 /// storage indices `storage_index` of each contact's S nodes compacted in order).
