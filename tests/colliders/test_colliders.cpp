@@ -14,6 +14,7 @@
 
 #include "engine/io/preview.h"
 #include "engine/run/run.h"
+#include "engine/step/contact.h"
 #include "engine/step/validate.h"
 #include "support/helpers.h"
 
@@ -189,6 +190,22 @@ TEST_CASE("contact at the particles: a floor under a box's bottom face keeps its
   const double exact = 0.5 * g * (std::sin(a) - mu * std::cos(a)) * t_end * t_end;
   INFO("slid " << slid << " m, exact " << exact << " m");
   CHECK(std::abs(slid - exact) < 0.05 * exact);
+}
+
+TEST_CASE("contact memory: kept in order of wall and particle id, without the impulses <= 0",
+          "[colliders][contact]") {
+  // The warm start reads the memory in one pass beside the contacts, sorted by patch and id,
+  // so whatever order the impulses come in (a checkpoint of an earlier version, the merged
+  // contacts of several ranks) the memory must keep them in that order.
+  ContactMemory m;
+  m.keep({7, 3, 9, 3, 5, 2}, {1, 1, 0, 0, 2, 1}, {0.5, 0.2, 0.0, 0.4, 0.3, -0.1}, 1e-3);
+  CHECK(m.ids == std::vector<std::uint32_t>{3, 3, 7, 5});
+  CHECK(m.patches == std::vector<std::uint32_t>{0, 1, 1, 2});
+  CHECK(m.impulses == std::vector<Real>{0.4, 0.2, 0.5, 0.3});
+  CHECK(m.dt == 1e-3);
+  m.keep({}, {}, {}, 2e-3);
+  CHECK(m.ids.empty());
+  CHECK(m.dt == 2e-3);
 }
 
 TEST_CASE("contact at the particles: 12 accelerated iterations solve closer than 24 plain ones",
