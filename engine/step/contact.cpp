@@ -408,47 +408,41 @@ void ghost_weights(const Stencil<KernelTraits<K>::kNodes>& s, const Vec3& point,
 /// A stencil node that takes no part in a contact (outside the grid, unallocated or massless).
 constexpr std::size_t kNoNode = Grid::kNoStorage;
 
-/// Keeps only the contacts that act (`acts`; st's arrays, the stencil weights and the grid
-/// storage indices `storage_index` of each contact's S nodes compacted in order).
-void keep_acting_contacts(const std::vector<char>& acts, ContactState& st,
-                          std::vector<std::size_t>& storage_index) {
+/// Keeps only the contacts that act (`acts`; st's arrays and the stencil weights compacted in
+/// order) and numbers the grid nodes of their stencils (grid storage indices `storage_index`
+/// of each contact's S nodes, kNoNode for none) compactly in first-touch order, node 0 being
+/// none; then takes each node's velocity, inverse mass and key, in parallel over the nodes.
+void keep_acting_contacts(const std::vector<char>& acts,
+                          const std::vector<std::size_t>& storage_index, const Grid& g,
+                          ContactState& st) {
   const int S = st.stencil;
+  if (st.compact.size() < g.mass.size()) st.compact.resize(g.mass.size(), -1);
+  st.storage.assign(1, kNoNode);  // compact node 0: none, weight 0, no mass
+  st.nodes.resize(st.weights.size());
   std::size_t kept = 0;
   for (std::size_t c = 0; c < st.size(); ++c) {
     if (!acts[c]) continue;
     copy_contact(st, c, kept);
     for (int t = 0; t < S; ++t) {
       st.weights[kept * S + t] = st.weights[c * S + t];
-      storage_index[kept * S + t] = storage_index[c * S + t];
+      const std::size_t at = storage_index[c * S + t];
+      std::uint32_t node = 0;
+      if (at != kNoNode) {
+        std::int32_t& id = st.compact[at];
+        if (id < 0) {
+          id = static_cast<std::int32_t>(st.storage.size());
+          st.storage.push_back(at);
+        }
+        node = static_cast<std::uint32_t>(id);
+      }
+      st.nodes[kept * S + t] = node;
     }
     ++kept;
   }
   resize_contacts(st, kept);
   st.weights.resize(kept * S);
-}
-
-/// Numbers the grid nodes of the kept contacts' stencils (grid storage indices
-/// `storage_index`, kNoNode for none) compactly in first-touch order, node 0 being none, and
-/// takes each node's velocity, inverse mass and key.
-void compact_nodes(const Grid& g, const std::vector<std::size_t>& storage_index, ContactState& st) {
-  const int S = st.stencil;
-  const std::size_t kept = st.size();
-  if (st.compact.size() < g.mass.size()) st.compact.resize(g.mass.size(), -1);
-  st.storage.assign(1, kNoNode);  // compact node 0: none, weight 0, no mass
   st.nodes.resize(kept * S);
-  for (std::size_t e = 0; e < kept * S; ++e) {
-    if (storage_index[e] == kNoNode) {
-      st.nodes[e] = 0;
-      continue;
-    }
-    std::int32_t& id = st.compact[storage_index[e]];
-    if (id < 0) {
-      id = static_cast<std::int32_t>(st.storage.size());
-      st.storage.push_back(storage_index[e]);
-    }
-    st.nodes[e] = static_cast<std::uint32_t>(id);
-  }
-  const std::size_t nn = st.storage.size();
+  const std::ptrdiff_t nn = static_cast<std::ptrdiff_t>(st.storage.size());
   st.node_velocity.resize(nn);
   st.node_inv_mass.resize(nn);
   st.node_key.resize(nn);
@@ -456,7 +450,8 @@ void compact_nodes(const Grid& g, const std::vector<std::size_t>& storage_index,
   st.node_velocity[0] = Vec3::Zero();
   st.node_inv_mass[0] = 0;
   st.node_key[0] = ~std::uint64_t{0};
-  for (std::size_t i = 1; i < nn; ++i) {
+#pragma omp parallel for schedule(static) if (nn >= kParallelMinItems)
+  for (std::ptrdiff_t i = 1; i < nn; ++i) {
     const std::size_t at = st.storage[i];
     st.compact[at] = -1;
     st.node_velocity[i] = g.velocity[at];
@@ -496,10 +491,13 @@ struct SharedGhostRows {
       if (n.cwiseAbs().maxCoeff(&axis) != 1) continue;
       const Real side = n[axis], at = st.point[c][axis];
       const Real sp = spacing[p.object[st.particle[c]]];
-      std::size_t e = 0;
-      while (e < entries.size() && !(entries[e].axis == axis && entries[e].side == side &&
-                                     entries[e].at == at && entries[e].spacing == sp))
-        ++e;
+      const auto is = [&](std::size_t e) {
+        return entries[e].axis == axis && entries[e].side == side && entries[e].at == at &&
+               entries[e].spacing == sp;
+      };
+      // Most contacts share the set of the one before them (they come wall by wall).
+      std::size_t e = c > 0 && of[c - 1] >= 0 && is(of[c - 1]) ? of[c - 1] : 0;
+      while (e < entries.size() && !is(e)) ++e;
       if (e == entries.size()) {
         if (e == kMost) continue;
         entries.push_back({axis, side, at, sp, {}});
@@ -571,8 +569,7 @@ void gather_stencils(Real dt, const Particles& p, const Grid& g, ContactState& s
     acts[c] = total != 0 &&
               (st.gap[c] <= 0 || (u - st.wall_velocity[c]).dot(st.normal[c]) < -st.gap[c] / dt);
   }
-  keep_acting_contacts(acts, st, storage_index);
-  compact_nodes(g, storage_index, st);
+  keep_acting_contacts(acts, storage_index, g, st);
 }
 
 /// The stencil entries of the contacts of `st` by node: node i's are contact[first[i]] to
@@ -642,14 +639,16 @@ void permute(const std::vector<std::uint32_t>& order, int stride, std::vector<T>
 /// depends on the particles' places in memory and, with ranks, on which rank holds them, and
 /// the solve's sums follow it: sorted, one and two ranks add the same impulses in the same
 /// order (with the warm start's memory kept per particle and wall, the pool at rest drifted
-/// apart between one and two ranks otherwise; docs/accuracy.md).
-void sort_contacts(ContactState& st) {
+/// apart between one and two ranks otherwise; docs/accuracy.md). The stencils stay where they
+/// are: returns where each sorted contact's is (sorted contact c's is at order[c]), or nothing
+/// if the contacts were in order already.
+std::vector<std::uint32_t> sort_contacts(ContactState& st) {
   // Each contact's patch and id as one key, beside its index (a particle has one contact
   // per patch, so the keys differ).
   std::vector<std::pair<std::uint64_t, std::uint32_t>> keys(st.size());
   for (std::size_t c = 0; c < keys.size(); ++c)
     keys[c] = {contact_key(st.patch[c], st.id[c]), static_cast<std::uint32_t>(c)};
-  if (std::is_sorted(keys.begin(), keys.end())) return;
+  if (std::is_sorted(keys.begin(), keys.end())) return {};
   std::sort(keys.begin(), keys.end());
   std::vector<std::uint32_t> order(st.size());
   for (std::size_t c = 0; c < order.size(); ++c) order[c] = keys[c].second;
@@ -658,8 +657,7 @@ void sort_contacts(ContactState& st) {
   permute(order, 1, st.gap);
   permute(order, 1, st.boundary);
   permute(order, 1, st.friction);
-  permute(order, st.stencil, st.nodes);
-  permute(order, st.stencil, st.weights);
+  return order;
 }
 
 /// The contacts as they were before merge_shared_stencils (in patch and particle id order),
@@ -679,10 +677,12 @@ struct Members {
 /// particles' own (at uniform pressure their impulses are equal, and the mean weights put the
 /// same force on each node), with one unknown per stencil and patch: a body squashed flat on
 /// a floor, its particles by the hundred per cell, costs as much as one that rests on it.
-/// Contacts keep their first-found order. Returns each merged contact's particles.
-Members merge_shared_stencils(ContactState& st) {
+/// Contacts keep their first-found order. Their stencils are read at `order` (sort_contacts)
+/// and left in contact order. Returns each merged contact's particles.
+Members merge_shared_stencils(const std::vector<std::uint32_t>& order, ContactState& st) {
   const int S = st.stencil;
   const std::size_t nc = st.size();
+  const auto from = [&](std::size_t c) { return order.empty() ? c : std::size_t{order[c]}; };
   // A stencil is named by its first node with mass and that node's place in it: contacts
   // with one stencil base reach the same nodes, and different bases give different names.
   struct Key {
@@ -705,8 +705,9 @@ Members merge_shared_stencils(ContactState& st) {
   Members m{st.id, st.patch, std::vector<std::uint32_t>(nc)};
   for (std::size_t c = 0; c < nc; ++c) {
     std::uint32_t t = 0;
-    while (t + 1 < static_cast<std::uint32_t>(S) && st.nodes[c * S + t] == 0) ++t;
-    const Key k{st.node_key[st.nodes[c * S + t]], t, st.patch[c], st.gap[c] <= 0};
+    const std::size_t at = from(c) * S;
+    while (t + 1 < static_cast<std::uint32_t>(S) && st.nodes[at + t] == 0) ++t;
+    const Key k{st.node_key[st.nodes[at + t]], t, st.patch[c], st.gap[c] <= 0};
     std::size_t h = Hash{}(k);
     h &= mask;
     while (table[h] != kEmpty && !(keys[table[h]] == k)) h = (h + 1) & mask;
@@ -720,6 +721,10 @@ Members merge_shared_stencils(ContactState& st) {
   const std::size_t ng = leader.size();
   if (ng == nc) {
     st.count.assign(nc, 1);
+    if (!order.empty()) {
+      permute(order, S, st.nodes);
+      permute(order, S, st.weights);
+    }
     return m;
   }
   std::vector<Vec3> normal(ng, Vec3::Zero()), wall_velocity(ng, Vec3::Zero());
@@ -731,7 +736,7 @@ Members merge_shared_stencils(ContactState& st) {
     wall_velocity[g] += st.wall_velocity[c];
     gap[g] = std::min(gap[g], st.gap[c]);
     st.count[g] += 1;
-    for (int t = 0; t < S; ++t) weights[g * S + t] += st.weights[c * S + t];
+    for (int t = 0; t < S; ++t) weights[g * S + t] += st.weights[from(c) * S + t];
   }
   std::vector<std::uint32_t> nodes(ng * S);
   for (std::size_t g = 0; g < ng; ++g) {
@@ -742,7 +747,7 @@ Members merge_shared_stencils(ContactState& st) {
     wall_velocity[g] /= n;
     for (int t = 0; t < S; ++t) {
       weights[g * S + t] /= n;
-      nodes[g * S + t] = st.nodes[c * S + t];
+      nodes[g * S + t] = st.nodes[from(c) * S + t];
     }
     copy_contact(st, c, g);
   }
@@ -998,8 +1003,7 @@ void keep_impulses(const Members& members, const ContactState& st, Real dt, Cont
 
 Real solve_contact(const ContactSettings& settings, Real dt, ContactState& st,
                    ContactMemory& memory) {
-  sort_contacts(st);
-  const Members members = merge_shared_stencils(st);
+  const Members members = merge_shared_stencils(sort_contacts(st), st);
   const int S = st.stencil;
   const std::size_t nc = st.size();
   const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(nc);
