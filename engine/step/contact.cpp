@@ -809,15 +809,14 @@ struct Chebyshev {
   }
 };
 
-/// What one contact's nodes take of an iteration, in one cache line: its normal (and held)
-/// impulse change and, if it rubs (friction, not held), its friction request and its share of
-/// its patch's capacity.
-struct alignas(64) ToNodes {
-  Vec3 push = Vec3::Zero();   ///< Change of the normal impulse along the normal, plus a held
-                              ///< contact's tangential change, N s.
-  Real share = 0;             ///< Share of the patch's friction capacity, N s.
-  Vec3 trial = Vec3::Zero();  ///< Friction request, N s.
-  bool rubs = false;          ///< Whether it rubs.
+/// What one contact's nodes take of an iteration besides its friction request
+/// (ContactSteps::ask): its normal (and held) impulse change and, if it rubs (friction, not
+/// held), its share of its patch's capacity.
+struct ToNodes {
+  Vec3 push = Vec3::Zero();  ///< Change of the normal impulse along the normal, plus a held
+                             ///< contact's tangential change, N s.
+  Real share = 0;            ///< Share of the patch's friction capacity, N s.
+  bool rubs = false;         ///< Whether it rubs.
 };
 
 /// One iteration's requests of every contact, and what Chebyshev's acceleration keeps of the
@@ -882,7 +881,6 @@ struct ContactSteps {
       dn[c] = ln[c] - st.normal_impulse[c];
       largest = std::max({largest, std::abs(dn[c]), ask[c].norm()});
       to_nodes[c].push = dn[c] * n + (hold ? ask[c] : Vec3::Zero());
-      to_nodes[c].trial = ask[c];
       st.normal_impulse[c] = ln[c];
     }
     residual = worst;
@@ -948,11 +946,11 @@ struct NodeFriction {
   }
 
   /// Sums at each node of `st` what its contacts (`by_node`) give it this iteration (`steps`'
-  /// to_nodes: impulse changes, and the friction requests and capacity shares of those that
-  /// rub), keeps the friction within its capacity, extrapolates it by the Chebyshev weight `omega`
-  /// (and keeps it within its capacity again), and changes the node velocities by the impulses;
-  /// adds the moving walls' work of the friction to `work`, in node order (`moving`: any wall
-  /// moves). Returns the largest squared velocity change.
+  /// to_nodes and ask: impulse changes, and the friction requests and capacity shares of those
+  /// that rub), keeps the friction within its capacity, extrapolates it by the Chebyshev weight
+  /// `omega` (and keeps it within its capacity again), and changes the node velocities by the
+  /// impulses; adds the moving walls' work of the friction to `work`, in node order (`moving`: any
+  /// wall moves). Returns the largest squared velocity change.
   Real apply(const NodeEntries& by_node, const ContactSteps& steps, bool par, bool moving,
              Real omega, ContactState& st, Real& work) {
     const std::ptrdiff_t nn = static_cast<std::ptrdiff_t>(st.node_velocity.size());
@@ -967,7 +965,7 @@ struct NodeFriction {
         const ToNodes& from = steps.to_nodes[c];
         step += w * from.push;
         if (!from.rubs) continue;
-        trial += w * from.trial;
+        trial += w * steps.ask[c];
         cap += w * from.share;
       }
       const Vec3 f =
