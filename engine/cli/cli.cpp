@@ -1,6 +1,5 @@
 #include "engine/cli/cli.h"
 
-#include <omp.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -639,7 +638,7 @@ int run_cli(int argc, char** argv) {
   if (level == spdlog::level::off && args.log_level != "off")
     usage_error("unknown log level '" + args.log_level + "'");
   spdlog::set_level(args.quiet ? spdlog::level::warn : level);
-  if (args.threads) omp_set_num_threads(*args.threads);
+  if (args.threads) set_threads(*args.threads);
   check_options(args);
 
   const CommandInfo* command = find_command(args.name);

@@ -1,18 +1,31 @@
 #include "engine/run/run.h"
 
+#include <omp.h>
 #include <spdlog/spdlog.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 
 #include "engine/core/reduce.h"
 #include "engine/parallel/comm.h"
 #include "engine/parallel/domain.h"
 
 namespace mpm {
+
+void set_threads(int threads) {
+  // A TBB cap holds while its global_control lives: one, replaced at each call.
+  static std::unique_ptr<tbb::global_control> tbb_cap;
+  tbb_cap.reset();
+  if (threads <= 0) return;
+  omp_set_num_threads(threads);
+  tbb_cap = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                  static_cast<std::size_t>(threads));
+}
 
 namespace {
 

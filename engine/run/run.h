@@ -81,6 +81,11 @@ class Observer {
   virtual void on_frame_gathered(const Simulation& sim, int frame) {}
 };
 
+/// Caps every parallel part of the engine at `threads` threads (0: no cap, OpenMP's default):
+/// OpenMP's loops and TBB's, which OpenVDB runs its mesh-to-level-set conversions in (an object's
+/// rest depths and a mesh collider at set-up), so that `--threads 1` runs on one core throughout.
+void set_threads(int threads);
+
 /// Total energy less wall work may not exceed its start by more than this fraction of the
 /// larger of the start energy and the wall work: explicit MPM only dissipates when stable.
 inline constexpr Real kEnergyGrowthLimit = 0.5;

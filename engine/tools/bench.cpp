@@ -216,7 +216,7 @@ BenchResult deserialize(const std::string& text) {
 }  // namespace
 
 std::vector<BenchResult> run_benchmarks(const BenchOptions& opt) {
-  if (opt.threads > 0) omp_set_num_threads(opt.threads);
+  if (opt.threads > 0) set_threads(opt.threads);
   std::vector<BenchResult> out;
   if (!opt.scene.empty()) {
     {  // a bad scene is a SceneError here, before any child runs

@@ -1,11 +1,15 @@
 // The same scene, seed and build give bit-identical particle state for 1 and 2 threads, and
-// with or without the reorder stage.
-#include <catch2/catch.hpp>
-
+// with or without the reorder stage; set_threads caps every parallel part.
 #include <omp.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
 
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <cstring>
+#include <mutex>
+#include <set>
+#include <thread>
 
 #include "engine/run/run.h"
 #include "support/float_bounds.h"
@@ -125,4 +129,35 @@ TEST_CASE("reorder: particles moved in memory by cell, the same motion by id to 
       for (const Vec3& v : sim->particles().v) speed = std::max(speed, v.norm());
     CHECK(dx < (simd ? 2 * test::simd_position_bound(0.04, speed) : test::kStoredEps / 40));
   }
+}
+
+TEST_CASE("set_threads caps OpenMP and TBB (OpenVDB's set-up work) alike") {
+  const int threads = omp_get_max_threads();
+  const auto tbb_cap = [] {
+    return tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+  };
+  const std::size_t uncapped = tbb_cap();
+  // The threads a TBB loop runs on: with its cap at one, only the calling thread.
+  const auto tbb_threads = [] {
+    std::mutex m;
+    std::set<std::thread::id> ids;
+    tbb::parallel_for(0, 256, [&](int i) {
+      volatile double sink = 0;
+      for (int k = 0; k < 20000; ++k) sink = sink + std::sqrt(double(i + k));
+      const std::lock_guard<std::mutex> lock(m);
+      ids.insert(std::this_thread::get_id());
+    });
+    return ids.size();
+  };
+  set_threads(1);
+  CHECK(omp_get_max_threads() == 1);
+  CHECK(tbb_cap() == 1);
+  CHECK(tbb_threads() == 1);
+  set_threads(2);
+  CHECK(omp_get_max_threads() == 2);
+  CHECK(tbb_cap() == 2);
+  set_threads(0);  // lifts TBB's cap, leaves OpenMP's setting
+  CHECK(tbb_cap() == uncapped);
+  CHECK(omp_get_max_threads() == 2);
+  omp_set_num_threads(threads);
 }

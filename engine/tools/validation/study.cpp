@@ -1,7 +1,5 @@
 #include "engine/tools/validation/study.h"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -11,6 +9,7 @@
 
 #include "engine/core/atomic_file.h"
 #include "engine/core/error.h"
+#include "engine/run/run.h"
 #include "engine/tools/child_process.h"
 
 namespace mpm::validation {
@@ -386,7 +385,7 @@ std::vector<StudyRow> run_study(const StudyOptions& opt,
       throw std::invalid_argument("unknown study sweep '" + name + "'; expected one of " + list);
     }
   }
-  if (opt.threads > 0) omp_set_num_threads(opt.threads);
+  if (opt.threads > 0) set_threads(opt.threads);
   std::vector<StudyRow> rows;
   for (const Experiment& e : experiments()) {
     if (!opt.experiments.empty() &&
