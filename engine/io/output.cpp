@@ -46,19 +46,24 @@ void write_dataset(hid_t file, const char* name, hid_t file_type, hid_t mem_type
 
 FrameView frame_in_id_order(const Particles& p, Real time, int frame, FrameArrays& arrays) {
   const std::size_t n = p.size();
+  const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(n);
+  const bool par = sn >= kParallelMinItems;  // each particle writes its own row: any order
   arrays.J.resize(n);
   arrays.id.resize(n);
   bool in_order = true;
-  for (std::size_t q = 0; q < n; ++q) in_order = in_order && p.id[q] == q;
+#pragma omp parallel for schedule(static) reduction(&& : in_order) if (par)
+  for (std::ptrdiff_t q = 0; q < sn; ++q) in_order = in_order && p.id[q] == std::size_t(q);
   if (in_order) {
-    for (std::size_t q = 0; q < n; ++q) arrays.J[q] = to_real(p.F[q]).determinant();
+#pragma omp parallel for schedule(static) if (par)
+    for (std::ptrdiff_t q = 0; q < sn; ++q) arrays.J[q] = to_real(p.F[q]).determinant();
     std::copy(p.id.begin(), p.id.end(), arrays.id.begin());
     return FrameView{p.x, p.v, p.object, arrays.J, static_cast<double>(time), frame, arrays.id};
   }
   arrays.x.resize(n);
   arrays.v.resize(n);
   arrays.object.resize(n);
-  for (std::size_t q = 0; q < n; ++q) {
+#pragma omp parallel for schedule(static) if (par)
+  for (std::ptrdiff_t q = 0; q < sn; ++q) {
     const std::uint32_t i = p.id[q];
     arrays.x[i] = p.x[q];
     arrays.v[i] = p.v[q];
@@ -85,7 +90,9 @@ FrameData frame_data(const FrameView& view) {
   d.object_id.resize(n);
   d.J.resize(n);
   d.id.assign(view.particle_id.begin(), view.particle_id.end());
-  for (std::size_t i = 0; i < n; ++i) {
+  const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(static) if (sn >= kParallelMinItems)
+  for (std::ptrdiff_t i = 0; i < sn; ++i) {
     for (int a = 0; a < 3; ++a) {
       d.position[3 * i + a] = static_cast<float>(view.position[i][a]);
       d.velocity[3 * i + a] = static_cast<float>(view.velocity[i][a]);
