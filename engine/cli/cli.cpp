@@ -639,6 +639,7 @@ int run_cli(int argc, char** argv) {
     usage_error("unknown log level '" + args.log_level + "'");
   spdlog::set_level(args.quiet ? spdlog::level::warn : level);
   if (args.threads) set_threads(*args.threads);
+  keep_freed_memory();  // no page faults for the step's per-substep buffers
   check_options(args);
 
   const CommandInfo* command = find_command(args.name);

@@ -1,5 +1,6 @@
 #include "engine/run/run.h"
 
+#include <malloc.h>
 #include <omp.h>
 #include <spdlog/spdlog.h>
 #include <tbb/global_control.h>
@@ -25,6 +26,13 @@ void set_threads(int threads) {
   omp_set_num_threads(threads);
   tbb_cap = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                   static_cast<std::size_t>(threads));
+}
+
+void keep_freed_memory() {
+#ifdef __GLIBC__
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);  // glibc's largest (a fixed value ends its adjusting)
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+#endif
 }
 
 namespace {

@@ -86,6 +86,14 @@ class Observer {
 /// rest depths and a mesh collider at set-up), so that `--threads 1` runs on one core throughout.
 void set_threads(int threads);
 
+/// Has the C library keep the memory a run frees for its next allocations (glibc: no mmap for
+/// blocks up to 32 MiB, no trimming below 1 GiB free), instead of returning it to the system
+/// and faulting fresh pages in at the next substep: each fault is a trap to the kernel (to the
+/// hypervisor on a virtual machine), and returning pages to the system while other threads
+/// run makes every core flush its TLB. A process-wide setting, for the mpm program's main;
+/// the peak memory does not grow. No effect with another C library.
+void keep_freed_memory();
+
 /// Total energy less wall work may not exceed its start by more than this fraction of the
 /// larger of the start energy and the wall work: explicit MPM only dissipates when stable.
 inline constexpr Real kEnergyGrowthLimit = 0.5;
