@@ -111,6 +111,34 @@ struct GridSpeed {
   }
 };
 
+/// A stencil node that takes no part in a contact (outside the grid, unallocated or massless).
+constexpr std::size_t kNoNode = Grid::kNoStorage;
+
+/// Whether a particle still a gap away from a wall can reach it within the substep: some node
+/// with mass of its contact point's stencil closes on the wall faster than the gap over the
+/// substep. The velocity gather_stencils interpolates at the point is a mean of those nodes',
+/// so a particle none of them closes fast enough cannot act: it is dropped in the search,
+/// before its contact and stencil are stored (at 1M particles on a floor, most candidates that
+/// GridSpeed's blocks let through).
+template <Kernel K>
+struct StencilClosing {
+  const Grid& g;  ///< The grid.
+  Real dt;        ///< The substep, s.
+
+  /// True if a node with mass of the stencil at `point` moves against the wall (normal `n`,
+  /// velocity `wall_velocity`) faster than `gap` / dt.
+  bool operator()(const Vec3& point, const Vec3& n, const Vec3& wall_velocity, Real gap) const {
+    constexpr int N = KernelTraits<K>::kNodes;
+    std::size_t at[N * N * N];
+    g.stencil_indices<N, true>(make_stencil<K>(point, g.origin, g.inv_h).base, at);
+    Real closing = 0;
+    for (const std::size_t i : at)
+      if (i != kNoNode && g.mass[i] > 0)
+        closing = std::max(closing, -(g.velocity[i] - wall_velocity).dot(n));
+    return !(closing * dt <= gap);
+  }
+};
+
 /// A wall as the contact search takes it: its condition and how far a particle can close on
 /// it within a substep.
 struct WallReach {
@@ -154,13 +182,16 @@ struct Candidate {
 /// Appends a contact for every particle and wall w that `scan` finds
 /// within reach (the particle's radius bound plus the wall's travel) and that can act:
 /// touching, or closing its gap within the substep of `dt` as fast as the grid near its
-/// contact point allows (`speed`). `scan(first, last, reach, keep)` tests particles [first,
-/// last) against every wall, calling `keep(q, w, hit)` for each within `reach[w]` of wall w.
-/// The contacts are appended wall by wall, each in particle order, whatever the thread count
-/// (each thread scans one contiguous chunk, and the chunks are joined in order).
-template <class Scan>
+/// contact point allows: first bounded by the blocks around it (`speed`), then exactly by its
+/// stencil's nodes (`closes(point, normal, wall velocity, gap)`, StencilClosing).
+/// `scan(first, last, reach, keep)` tests particles [first, last) against every wall, calling
+/// `keep(q, w, hit)` for each within `reach[w]` of wall w. The contacts are appended wall by
+/// wall, each in particle order, whatever the thread count (each thread scans one contiguous
+/// chunk, and the chunks are joined in order).
+template <class Scan, class Closes>
 void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt,
-                   const std::vector<WallReach>& walls, Scan&& scan, ContactState& st) {
+                   const std::vector<WallReach>& walls, Scan&& scan, Closes&& closes,
+                   ContactState& st) {
   const Particles& p = radius.p;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
   if (n == 0 || walls.empty()) return;
@@ -181,7 +212,9 @@ void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt
          [&](std::ptrdiff_t q, std::uint32_t w, const WallHit& h) {
            if (h.distance >= radius.most(q) + walls[w].travel) return;
            const Real gap = h.distance - radius.along(q, h.normal);
-           if (gap > 0 && dt * (speed.near(h.point, h.normal) + h.velocity.norm()) <= gap) return;
+           if (gap > 0 && (dt * (speed.near(h.point, h.normal) + h.velocity.norm()) <= gap ||
+                           !closes(h.point, h.normal, h.velocity, gap)))
+             return;
            mine.push_back({static_cast<std::uint32_t>(q), w, h, gap});
          });
     for (const Candidate& c : mine) ++at[c.wall * threads + t + 1];
@@ -405,9 +438,6 @@ void ghost_weights(const Stencil<KernelTraits<K>::kNodes>& s, const Vec3& point,
   }
 }
 
-/// A stencil node that takes no part in a contact (outside the grid, unallocated or massless).
-constexpr std::size_t kNoNode = Grid::kNoStorage;
-
 /// Keeps only the contacts that act (`acts`; st's arrays and the stencil weights compacted in
 /// order) and numbers the grid nodes of their stencils (grid storage indices `storage_index`
 /// of each contact's S nodes, kNoNode for none) compactly in first-touch order, node 0 being
@@ -534,21 +564,10 @@ void gather_stencils(Real dt, const Particles& p, const Grid& g, ContactState& s
     const auto s = make_stencil<K>(st.point[c], g.origin, g.inv_h);
     std::size_t* at = &storage_index[c * S];
     Real* w = &st.weights[c * S];
-    // A particle still a gap away whose every node moves away from the wall, or closes
-    // slower than the gap within the substep, cannot act (the interpolated velocity is a
-    // mean of the nodes'), so its weights are not worth finding.
-    Real closing = 0;
     g.stencil_indices<N, true>(s.base, at);  // kNoStorage is kNoNode
     int t;
-    for (t = 0; t < S; ++t) {
+    for (t = 0; t < S; ++t)
       if (at[t] != kNoNode && !(g.mass[at[t]] > 0)) at[t] = kNoNode;
-      if (at[t] != kNoNode)
-        closing = std::max(closing, -(g.velocity[at[t]] - st.wall_velocity[c]).dot(st.normal[c]));
-    }
-    if (st.gap[c] > 0 && closing * dt <= st.gap[c]) {
-      std::fill(w, w + S, Real(0));
-      continue;
-    }
     ghost_weights<K>(s, st.point[c], st.normal[c], spacing[p.object[st.particle[c]]],
                      st.force_weights, g, shared.rows(c), w);
     Real sum = 0;
@@ -1091,9 +1110,13 @@ void write_contact_velocities(const ContactState& st, Grid& g) {
     if (st.node_inv_mass[i] > 0) g.velocity[st.storage[i]] = st.node_velocity[i];
 }
 
-void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
-                   Kernel kernel, Real time, Real dt, const Particles& p, const Grid& g,
-                   ContactState& st) {
+namespace {
+
+/// find_contacts with the kernel K.
+template <Kernel K>
+void find_contacts_with(const std::vector<WallPlane>& planes,
+                        const std::vector<Collider>& colliders, Real time, Real dt,
+                        const Particles& p, const Grid& g, ContactState& st) {
   st.clear();
   // A particle's radius is half its spacing: a body's outer particles lie that far inside
   // its surface (sampling.cpp), so the surface, not the particle centres, meets the wall.
@@ -1108,6 +1131,7 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
   const Real fastest = speed.fastest;
   const auto travel = [&](Real wall_speed) { return std::min(cell, dt * (fastest + wall_speed)); };
   const ParticleRadius particle_radius{p, radius, st.rest_depth};
+  const StencilClosing<K> closes{g, dt};
   // The planes, in one pass over the particles. A plane that coincides with one listed
   // before it (a floor under a box's bottom face, moving alike) is left out: its contacts would
   // pose the same condition twice, and split the normal impulse between the two, so that each
@@ -1135,7 +1159,7 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
       [&](std::ptrdiff_t first, std::ptrdiff_t last, const std::vector<Real>& most, auto&& keep) {
         scan_planes(p.x, normals, points, velocities, first, last, most, keep);
       },
-      st);
+      closes, st);
   std::uint32_t wall = static_cast<std::uint32_t>(planes.size());
   for (const Collider& c : colliders) {
     // A collider's speed varies over it: its particles' reach stays a cell.
@@ -1158,10 +1182,19 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
             keep(q, 0, WallHit{s.phi, normal, next.velocity_at(x), x - s.phi * normal});
           }
         },
-        st);
+        closes, st);
   }
   st.patches = wall * radius.size();
-  dispatch_kernel(kernel, [&]<Kernel K>() { gather_stencils<K>(dt, p, g, st); });
+  gather_stencils<K>(dt, p, g, st);
+}
+
+}  // namespace
+
+void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
+                   Kernel kernel, Real time, Real dt, const Particles& p, const Grid& g,
+                   ContactState& st) {
+  dispatch_kernel(
+      kernel, [&]<Kernel K>() { find_contacts_with<K>(planes, colliders, time, dt, p, g, st); });
 }
 
 Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
