@@ -124,18 +124,29 @@ template <Kernel K>
 struct StencilClosing {
   const Grid& g;  ///< The grid.
   Real dt;        ///< The substep, s.
+  /// The last stencil asked about and its closing speed (use one copy per thread): the
+  /// particles lie in cell order, so the next one is mostly in the same cell.
+  struct Last {
+    Vec3i base = Vec3i::Constant(std::numeric_limits<int>::min());
+    Vec3 n, wall_velocity;
+    Real closing = 0;
+  } last;
 
   /// True if a node with mass of the stencil at `point` moves against the wall (normal `n`,
   /// velocity `wall_velocity`) faster than `gap` / dt.
-  bool operator()(const Vec3& point, const Vec3& n, const Vec3& wall_velocity, Real gap) const {
+  bool operator()(const Vec3& point, const Vec3& n, const Vec3& wall_velocity, Real gap) {
     constexpr int N = KernelTraits<K>::kNodes;
-    std::size_t at[N * N * N];
-    g.stencil_indices<N, true>(make_stencil<K>(point, g.origin, g.inv_h).base, at);
-    Real closing = 0;
-    for (const std::size_t i : at)
-      if (i != kNoNode && g.mass[i] > 0)
-        closing = std::max(closing, -(g.velocity[i] - wall_velocity).dot(n));
-    return !(closing * dt <= gap);
+    const Vec3i base = make_stencil<K>(point, g.origin, g.inv_h).base;
+    if (base != last.base || n != last.n || wall_velocity != last.wall_velocity) {
+      std::size_t at[N * N * N];
+      g.stencil_indices<N, true>(base, at);
+      Real closing = 0;
+      for (const std::size_t i : at)
+        if (i != kNoNode && g.mass[i] > 0)
+          closing = std::max(closing, -(g.velocity[i] - wall_velocity).dot(n));
+      last = {base, n, wall_velocity, closing};
+    }
+    return !(last.closing * dt <= gap);
   }
 };
 
@@ -190,7 +201,7 @@ struct Candidate {
 /// chunk, and the chunks are joined in order).
 template <class Scan, class Closes>
 void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt,
-                   const std::vector<WallReach>& walls, Scan&& scan, Closes&& closes,
+                   const std::vector<WallReach>& walls, Scan&& scan, const Closes& closes,
                    ContactState& st) {
   const Particles& p = radius.p;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
@@ -208,12 +219,13 @@ void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt
   {
     const int t = omp_get_thread_num();
     std::vector<Candidate> mine;
+    Closes closes_here = closes;  // its own last stencil
     scan(n * t / threads, n * (t + 1) / threads, reach,
          [&](std::ptrdiff_t q, std::uint32_t w, const WallHit& h) {
            if (h.distance >= radius.most(q) + walls[w].travel) return;
            const Real gap = h.distance - radius.along(q, h.normal);
            if (gap > 0 && (dt * (speed.near(h.point, h.normal) + h.velocity.norm()) <= gap ||
-                           !closes(h.point, h.normal, h.velocity, gap)))
+                           !closes_here(h.point, h.normal, h.velocity, gap)))
              return;
            mine.push_back({static_cast<std::uint32_t>(q), w, h, gap});
          });
@@ -1131,7 +1143,7 @@ void find_contacts_with(const std::vector<WallPlane>& planes,
   const Real fastest = speed.fastest;
   const auto travel = [&](Real wall_speed) { return std::min(cell, dt * (fastest + wall_speed)); };
   const ParticleRadius particle_radius{p, radius, st.rest_depth};
-  const StencilClosing<K> closes{g, dt};
+  const StencilClosing<K> closes{g, dt, {}};
   // The planes, in one pass over the particles. A plane that coincides with one listed
   // before it (a floor under a box's bottom face, moving alike) is left out: its contacts would
   // pose the same condition twice, and split the normal impulse between the two, so that each
