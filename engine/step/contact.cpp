@@ -83,11 +83,18 @@ struct GridSpeed {
     }
     fastest = std::sqrt(squared);
   }
+  /// The blocks of a caller's last near() and their bound (one per thread).
+  struct Last {
+    Vec3i lo = Vec3i::Constant(-1), hi = Vec3i::Constant(-2);  ///< No blocks.
+    Vec3 n = Vec3::Zero();                                     ///< The normal asked about.
+    Real speed = 0;                                            ///< near()'s answer.
+  };
   /// The fastest any node within two cells of `x` (any kernel's stencil of a point there)
   /// moves against the normal `n`, m/s (at least 0): over the blocks those nodes lie in (at
   /// most two per axis), the sum over the axes of |n_a| times the largest component against
-  /// n_a, which bounds -v.n at every node.
-  Real near(const Vec3& x, const Vec3& n) const {
+  /// n_a, which bounds -v.n at every node. Reuses `last` when its blocks and normal are the
+  /// same (the particles lie in cell order), else replaces it.
+  Real near(const Vec3& x, const Vec3& n, Last& last) const {
     const Vec3 f = (x - g.origin).cwiseProduct(g.inv_h);
     Vec3i lo, hi;
     for (int a = 0; a < 3; ++a) {
@@ -96,6 +103,11 @@ struct GridSpeed {
       hi[a] = std::min(cell + 2, g.nodes[a] - 1) >> Grid::kBlockBits;
       if (lo[a] > hi[a]) return 0;  // wholly outside the grid: no nodes
     }
+    if (lo != last.lo || hi != last.hi || n != last.n) last = {lo, hi, n, near_blocks(lo, hi, n)};
+    return last.speed;
+  }
+  /// near() over the blocks lo to hi (block coordinates, inclusive).
+  Real near_blocks(const Vec3i& lo, const Vec3i& hi, const Vec3& n) const {
     Real fastest_in = 0;
     for (int i = lo.x(); i <= hi.x(); ++i)
       for (int j = lo.y(); j <= hi.y(); ++j)
@@ -220,12 +232,14 @@ void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt
     const int t = omp_get_thread_num();
     std::vector<Candidate> mine;
     Closes closes_here = closes;  // its own last stencil
+    GridSpeed::Last near_last;    // and last blocks
     scan(n * t / threads, n * (t + 1) / threads, reach,
          [&](std::ptrdiff_t q, std::uint32_t w, const WallHit& h) {
            if (h.distance >= radius.most(q) + walls[w].travel) return;
            const Real gap = h.distance - radius.along(q, h.normal);
-           if (gap > 0 && (dt * (speed.near(h.point, h.normal) + h.velocity.norm()) <= gap ||
-                           !closes_here(h.point, h.normal, h.velocity, gap)))
+           if (gap > 0 &&
+               (dt * (speed.near(h.point, h.normal, near_last) + h.velocity.norm()) <= gap ||
+                !closes_here(h.point, h.normal, h.velocity, gap)))
              return;
            mine.push_back({static_cast<std::uint32_t>(q), w, h, gap});
          });
