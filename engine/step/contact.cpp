@@ -285,11 +285,21 @@ void scan_planes(const std::vector<Vec3>& x, const std::vector<Vec3>& normal,
   for (std::ptrdiff_t tile = first; tile < last; tile += kTile) {
     const std::ptrdiff_t m = std::min(kTile, last - tile);
     const Vec3* xt = &x[tile];
-    Vec3 lo = xt[0], hi = xt[0];
-    for (std::ptrdiff_t i = 1; i < m; ++i) {
+    // Two independent running bounds, so that each min and max need not wait for the last.
+    Vec3 lo = xt[0], hi = xt[0], lo2 = xt[0], hi2 = xt[0];
+    std::ptrdiff_t i = 1;
+    for (; i + 1 < m; i += 2) {
+      lo = lo.cwiseMin(xt[i]);
+      hi = hi.cwiseMax(xt[i]);
+      lo2 = lo2.cwiseMin(xt[i + 1]);
+      hi2 = hi2.cwiseMax(xt[i + 1]);
+    }
+    if (i < m) {
       lo = lo.cwiseMin(xt[i]);
       hi = hi.cwiseMax(xt[i]);
     }
+    lo = lo.cwiseMin(lo2);
+    hi = hi.cwiseMax(hi2);
     for (std::size_t w = 0; w < normal.size(); ++w) {
       const Vec3 n = normal[w];
       const Real c = n.dot(point[w]), r = reach[w];
