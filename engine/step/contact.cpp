@@ -139,9 +139,10 @@ struct StencilClosing {
   /// The last stencil asked about and its closing speed (use one copy per thread): the
   /// particles lie in cell order, so the next one is mostly in the same cell.
   struct Last {
-    Vec3i base = Vec3i::Constant(std::numeric_limits<int>::min());
-    Vec3 n, wall_velocity;
-    Real closing = 0;
+    Vec3i base = Vec3i::Constant(std::numeric_limits<int>::min());  ///< None yet.
+    Vec3 n = Vec3::Zero();              ///< The wall normal asked about.
+    Vec3 wall_velocity = Vec3::Zero();  ///< The wall velocity asked about, m/s.
+    Real closing = 0;                   ///< The fastest closing of its nodes, m/s.
   } last;
 
   /// True if a node with mass of the stencil at `point` moves against the wall (normal `n`,
@@ -577,7 +578,9 @@ struct SharedGhostRows {
 };
 
 /// The contacts' stencils (weights, grid storage indices), then compact node indices in
-/// first-touch order with each node's velocity, inverse mass and key.
+/// first-touch order with each node's velocity, inverse mass and key. The contacts come from
+/// the search, whose StencilClosing has dropped those that cannot close their gap; the ones
+/// whose interpolated velocity does not close it are dropped here.
 template <Kernel K>
 void gather_stencils(Real dt, const Particles& p, const Grid& g, ContactState& st) {
   constexpr int N = KernelTraits<K>::kNodes, S = N * N * N;
