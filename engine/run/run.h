@@ -91,7 +91,7 @@ void set_threads(int threads);
 /// and faulting fresh pages in at the next substep: each fault is a trap to the kernel (to the
 /// hypervisor on a virtual machine), and returning pages to the system while other threads
 /// run makes every core flush its TLB. A process-wide setting, for the mpm program's main;
-/// the peak memory does not grow. No effect with another C library.
+/// the peak memory moves by about 1 % (docs/performance.md). No effect with another C library.
 void keep_freed_memory();
 
 /// Total energy less wall work may not exceed its start by more than this fraction of the
