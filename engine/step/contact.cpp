@@ -286,21 +286,11 @@ void scan_planes(const std::vector<Vec3>& x, const std::vector<Vec3>& normal,
   for (std::ptrdiff_t tile = first; tile < last; tile += kTile) {
     const std::ptrdiff_t m = std::min(kTile, last - tile);
     const Vec3* xt = &x[tile];
-    // Two independent running bounds, so that each min and max need not wait for the last.
-    Vec3 lo = xt[0], hi = xt[0], lo2 = xt[0], hi2 = xt[0];
-    std::ptrdiff_t i = 1;
-    for (; i + 1 < m; i += 2) {
-      lo = lo.cwiseMin(xt[i]);
-      hi = hi.cwiseMax(xt[i]);
-      lo2 = lo2.cwiseMin(xt[i + 1]);
-      hi2 = hi2.cwiseMax(xt[i + 1]);
-    }
-    if (i < m) {
+    Vec3 lo = xt[0], hi = xt[0];
+    for (std::ptrdiff_t i = 1; i < m; ++i) {
       lo = lo.cwiseMin(xt[i]);
       hi = hi.cwiseMax(xt[i]);
     }
-    lo = lo.cwiseMin(lo2);
-    hi = hi.cwiseMax(hi2);
     for (std::size_t w = 0; w < normal.size(); ++w) {
       const Vec3 n = normal[w];
       const Real c = n.dot(point[w]), r = reach[w];
@@ -913,73 +903,36 @@ struct ContactSteps {
   /// `residual` to the largest violation before the step (violation); returns the largest
   /// impulse change or request.
   Real take(ContactState& st, Real dt, Real omega, bool par, Real& residual) {
+    const int S = st.stencil;
     const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(st.size());
-    const std::ptrdiff_t groups = (sn + kSideBySide - 1) / kSideBySide;
     Real largest = 0, worst = 0;
 #pragma omp parallel for schedule(static) reduction(max : largest, worst) if (par)
-    for (std::ptrdiff_t group = 0; group < groups; ++group) {
-      const std::ptrdiff_t first = group * kSideBySide;
-      const int count = static_cast<int>(std::min(kSideBySide, sn - first));
-      Vec3 velocity[kSideBySide];
-      interpolate(st, first, count, velocity);
-      for (int k = 0; k < count; ++k)
-        step_contact(st, first + k, velocity[k], dt, omega, largest, worst);
+    for (std::ptrdiff_t c = 0; c < sn; ++c) {
+      Vec3 u = Vec3::Zero();
+      for (int t = 0; t < S; ++t)
+        u += st.weights[c * S + t] * st.node_velocity[st.nodes[c * S + t]];
+      worst = std::max(worst, violation(st, c, u));
+      const Real step = normal_impulse(st, c, u, dt);
+      const Real extrapolated = omega * (step - earlier[c]) + earlier[c];
+      const bool hold = held(st, c);
+      ln[c] = hold ? extrapolated : std::max(extrapolated, Real(0));
+      earlier[c] = st.normal_impulse[c];
+      const Vec3& n = st.normal[c];
+      const Vec3 ur = u - st.wall_velocity[c];
+      ask[c] = rubs(st, c) ? Vec3(-(ur - ur.dot(n) * n) * st.inv_k[c]) : Vec3::Zero();
+      if (hold) {  // its tangential impulse, accumulated, extrapolated alike
+        const Vec3 t = omega * (held_impulse[c] + ask[c] - held_earlier[c]) + held_earlier[c];
+        held_earlier[c] = held_impulse[c];
+        ask[c] = t - held_impulse[c];
+        held_impulse[c] = t;
+      }
+      dn[c] = ln[c] - st.normal_impulse[c];
+      largest = std::max({largest, std::abs(dn[c]), ask[c].norm()});
+      to_nodes[c].push = dn[c] * n + (hold ? ask[c] : Vec3::Zero());
+      st.normal_impulse[c] = ln[c];
     }
     residual = worst;
     return largest;
-  }
-
-  /// Contacts interpolated side by side (take()).
-  static constexpr std::ptrdiff_t kSideBySide = 4;
-
-  /// The velocities at the contact points of contacts first to first + count - 1 of `st`
-  /// (count at most kSideBySide), each summed over its stencil in stencil order; with four,
-  /// the four sums go side by side, so that each one's additions need not wait for its last.
-  static void interpolate(const ContactState& st, std::ptrdiff_t first, int count, Vec3* u) {
-    const int S = st.stencil;
-    const Real* w = &st.weights[first * S];
-    const std::uint32_t* i = &st.nodes[first * S];
-    const std::vector<Vec3>& v = st.node_velocity;
-    if (count == 4) {
-      Vec3 a = Vec3::Zero(), b = Vec3::Zero(), c = Vec3::Zero(), d = Vec3::Zero();
-      for (int t = 0; t < S; ++t) {
-        a += w[t] * v[i[t]];
-        b += w[S + t] * v[i[S + t]];
-        c += w[2 * S + t] * v[i[2 * S + t]];
-        d += w[3 * S + t] * v[i[3 * S + t]];
-      }
-      u[0] = a, u[1] = b, u[2] = c, u[3] = d;
-      return;
-    }
-    for (int k = 0; k < count; ++k) {
-      u[k] = Vec3::Zero();
-      for (int t = 0; t < S; ++t) u[k] += w[k * S + t] * v[i[k * S + t]];
-    }
-  }
-
-  /// Contact c's step (take()) from the velocity `u` at its contact point; keeps the largest
-  /// change in `largest` and the largest violation in `worst`.
-  void step_contact(ContactState& st, std::ptrdiff_t c, const Vec3& u, Real dt, Real omega,
-                    Real& largest, Real& worst) {
-    worst = std::max(worst, violation(st, c, u));
-    const Real step = normal_impulse(st, c, u, dt);
-    const Real extrapolated = omega * (step - earlier[c]) + earlier[c];
-    const bool hold = held(st, c);
-    ln[c] = hold ? extrapolated : std::max(extrapolated, Real(0));
-    earlier[c] = st.normal_impulse[c];
-    const Vec3& n = st.normal[c];
-    const Vec3 ur = u - st.wall_velocity[c];
-    ask[c] = rubs(st, c) ? Vec3(-(ur - ur.dot(n) * n) * st.inv_k[c]) : Vec3::Zero();
-    if (hold) {  // its tangential impulse, accumulated, extrapolated alike
-      const Vec3 t = omega * (held_impulse[c] + ask[c] - held_earlier[c]) + held_earlier[c];
-      held_earlier[c] = held_impulse[c];
-      ask[c] = t - held_impulse[c];
-      held_impulse[c] = t;
-    }
-    dn[c] = ln[c] - st.normal_impulse[c];
-    largest = std::max({largest, std::abs(dn[c]), ask[c].norm()});
-    to_nodes[c].push = dn[c] * n + (hold ? ask[c] : Vec3::Zero());
-    st.normal_impulse[c] = ln[c];
   }
 
   /// The moving walls' work of this iteration's normal and held impulses, in contact order

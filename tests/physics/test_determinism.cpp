@@ -1,10 +1,11 @@
 // The same scene, seed and build give bit-identical particle state for 1 and 2 threads, and
 // with or without the reorder stage; set_threads caps every parallel part.
+#include <catch2/catch.hpp>
+
 #include <omp.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
-#include <catch2/catch.hpp>
 #include <cmath>
 #include <cstring>
 #include <mutex>
