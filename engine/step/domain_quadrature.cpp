@@ -16,17 +16,14 @@ namespace {
 /// particles spread more widely (the 1D model's rule, scripts/pool_1d/schemes.py).
 constexpr Real kFitSpread = 1e-6;
 
-/// Runs f(q) for every particle q in `order`, slab by slab: the even slabs at once and then
-/// the odd ones, so that two particles that run at once never write the same node.
+/// Runs f(q) for every particle q in `order`, slab by slab (for_each_slab), so that two
+/// particles that run at once never write the same node.
 template <class Fn>
 void for_each_by_slab(const ParticleOrder& order, Fn&& f) {
-  const int slabs = static_cast<int>(order.slab_start.size()) - 1;
-  for (int color = 0; color < 2; ++color) {
-#pragma omp parallel for schedule(dynamic, 1) if (order.order.size() >= kParallelMinItems)
-    for (int s = color; s < slabs; s += 2)
-      for (std::size_t at = order.slab_start[s]; at < order.slab_start[s + 1]; ++at)
-        f(order.order[at]);
-  }
+  for_each_slab(order, kParallelMinItems, [&](int s) {
+    for (std::size_t at = order.slab_start[s]; at < order.slab_start[s + 1]; ++at)
+      f(order.order[at]);
+  });
 }
 
 /// Sums particle q's moments into its 27 nodes: sum w, sum w d (3), sum w d d^T (6: xx yy zz

@@ -2,8 +2,10 @@
 /// \file Particle <-> grid transfers and the particle-side stages of a substep.
 
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
 #include <span>
+#include <thread>
 #include <vector>
 
 #include "engine/step/grid.h"
@@ -17,8 +19,9 @@ namespace mpm {
 ///
 /// Slabs are a few cells thick along x (at least the kernel's width, about equal particle
 /// counts). A particle in slab s writes only nodes of slabs s and s + 1, so all even slabs can
-/// scatter at once, then all odd ones, with no atomics. Slabs depend on the particles and the
-/// kernel only, not the thread count, so sums are the same for any count.
+/// scatter at once, and each odd one once the even ones beside it are done (for_each_slab),
+/// with no atomics. Slabs depend on the particles and the kernel only, not the thread count, so
+/// sums are the same for any count.
 struct ParticleOrder {
   std::vector<std::uint32_t> order;     ///< Particle indices sorted by stencil base cell.
   std::vector<std::size_t> slab_start;  ///< order[slab_start[s] .. slab_start[s+1]) is slab s.
@@ -39,6 +42,37 @@ struct ParticleOrder {
   /// the radix sort's second array.
   std::vector<std::uint32_t> scratch;
 };
+
+/// Runs f(s) for every slab s of `order`, in parallel from `parallel_from` particles: the even
+/// slabs are handed out first, in order, then the odd ones, and an odd slab starts once the
+/// even slabs beside it are done. Every node so receives its even slab's sums before its odd
+/// slab's, on any thread count, as when all even slabs ran before all odd ones, but a thread
+/// done with its even slabs goes on to an odd one instead of waiting at a barrier for the
+/// last even slab (slabs end at whole planes of cells, so their particle counts differ).
+template <class Fn>
+void for_each_slab(const ParticleOrder& order, long parallel_from, Fn&& f) {
+  const int slabs = static_cast<int>(order.slab_start.size()) - 1, evens = (slabs + 1) / 2;
+  const auto slab = [evens](int k) { return k < evens ? 2 * k : 2 * (k - evens) + 1; };
+  if (static_cast<long>(order.order.size()) < parallel_from) {
+    for (int k = 0; k < slabs; ++k) f(slab(k));
+    return;
+  }
+  std::vector<std::atomic<bool>> done(static_cast<std::size_t>(std::max(slabs, 0)));
+  std::atomic<int> next{0};
+  const auto wait_for = [&](int s) {
+    while (s < slabs && !done[s].load(std::memory_order_acquire)) std::this_thread::yield();
+  };
+#pragma omp parallel
+  for (int k = next++; k < slabs; k = next++) {
+    const int s = slab(k);
+    if (s % 2 == 1) {  // every even slab was handed out before it: the waits end
+      wait_for(s - 1);
+      wait_for(s + 1);
+    }
+    f(s);
+    done[s].store(true, std::memory_order_release);
+  }
+}
 
 /// Sorts particles by the base cell of `kernel`'s stencil and activates the grid blocks their
 /// stencils touch (Grid::activate_blocks). Slabs are wide enough for the kernel (2 cells, 3

@@ -605,12 +605,9 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
 template <Kernel K, Transfer T>
 void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt,
                  std::span<const BatchModel> fold, Grid& g) {
-  const int slabs = static_cast<int>(ord.slab_start.size()) - 1;
-  for (int color = 0; color < 2; ++color) {
-#pragma omp parallel for schedule(dynamic, 1) if (ord.order.size() >= kParallelMinItems)
-    for (int s = color; s < slabs; s += 2)
-      scatter_range<K, T>(p, ord, ord.slab_start[s], ord.slab_start[s + 1], dt, fold, g);
-  }
+  for_each_slab(ord, kParallelMinItems, [&](int s) {
+    scatter_range<K, T>(p, ord, ord.slab_start[s], ord.slab_start[s + 1], dt, fold, g);
+  });
 }
 
 /// The stencil of particles [q0, q0 + count) (count <= kLanes, the last particle repeated in
