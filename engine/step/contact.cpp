@@ -38,8 +38,6 @@ struct ParticleRadius {
 
   /// Rest depth of particle q, or -1 if it has none.
   Real depth(std::size_t q) const { return rest_depth.empty() ? -1 : rest_depth[p.id[q]]; }
-  /// The largest radius any particle of q's object can have: most(q) without q's depth.
-  Real widest(std::size_t q) const { return half_spacing[p.object[q]] * kRestDepthCap; }
   /// The largest radius particle q can have against any wall.
   Real most(std::size_t q) const {
     return half_spacing[p.object[q]] * (depth(q) < 0 ? 1 : kRestDepthCap);
@@ -128,15 +126,16 @@ struct GridSpeed {
 /// A stencil node that takes no part in a contact (outside the grid, unallocated or massless).
 constexpr std::size_t kNoNode = Grid::kNoStorage;
 
-/// How fast a particle still a gap away from a wall can close on it: as fast as the fastest
-/// node with mass of its contact point's stencil. The velocity gather_stencils interpolates at
-/// the point is a mean of those nodes', so a particle none of them closes on the wall faster
-/// than its gap over the substep cannot act: it is dropped in the search, before its contact
-/// and stencil are stored (at 1M particles on a floor, most candidates that GridSpeed's blocks
-/// let through).
+/// Whether a particle still a gap away from a wall can reach it within the substep: some node
+/// with mass of its contact point's stencil closes on the wall faster than the gap over the
+/// substep. The velocity gather_stencils interpolates at the point is a mean of those nodes',
+/// so a particle none of them closes fast enough cannot act: it is dropped in the search,
+/// before its contact and stencil are stored (at 1M particles on a floor, most candidates that
+/// GridSpeed's blocks let through).
 template <Kernel K>
 struct StencilClosing {
   const Grid& g;  ///< The grid.
+  Real dt;        ///< The substep, s.
   /// The last stencil asked about and its closing speed (use one copy per thread): the
   /// particles lie in cell order, so the next one is mostly in the same cell.
   struct Last {
@@ -146,9 +145,9 @@ struct StencilClosing {
     Real closing = 0;                   ///< The fastest closing of its nodes, m/s.
   } last;
 
-  /// The fastest a node with mass of the stencil at `point` moves against the wall (normal
-  /// `n`, velocity `wall_velocity`), m/s (at least 0).
-  Real operator()(const Vec3& point, const Vec3& n, const Vec3& wall_velocity) {
+  /// True if a node with mass of the stencil at `point` moves against the wall (normal `n`,
+  /// velocity `wall_velocity`) faster than `gap` / dt.
+  bool operator()(const Vec3& point, const Vec3& n, const Vec3& wall_velocity, Real gap) {
     constexpr int N = KernelTraits<K>::kNodes;
     const Vec3i base = make_stencil<K>(point, g.origin, g.inv_h).base;
     if (base != last.base || n != last.n || wall_velocity != last.wall_velocity) {
@@ -160,7 +159,7 @@ struct StencilClosing {
           closing = std::max(closing, -(g.velocity[i] - wall_velocity).dot(n));
       last = {base, n, wall_velocity, closing};
     }
-    return last.closing;
+    return !(last.closing * dt <= gap);
   }
 };
 
@@ -208,7 +207,7 @@ struct Candidate {
 /// within reach (the particle's radius bound plus the wall's travel) and that can act:
 /// touching, or closing its gap within the substep of `dt` as fast as the grid near its
 /// contact point allows: first bounded by the blocks around it (`speed`), then exactly by its
-/// stencil's nodes (`closes(point, normal, wall velocity)`, StencilClosing).
+/// stencil's nodes (`closes(point, normal, wall velocity, gap)`, StencilClosing).
 /// `scan(first, last, reach, keep)` tests particles [first, last) against every wall, calling
 /// `keep(q, w, hit)` for each within `reach[w]` of wall w. The contacts are appended wall by
 /// wall, each in particle order, whatever the thread count (each thread scans one contiguous
@@ -237,25 +236,12 @@ void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt
     GridSpeed::Last near_last;    // and last blocks
     scan(n * t / threads, n * (t + 1) / threads, reach,
          [&](std::ptrdiff_t q, std::uint32_t w, const WallHit& h) {
-           // How far the grid near the contact point can close on the wall in the substep:
-           // bounded by the blocks around it, then exactly by its stencil's nodes (each found
-           // once, when first needed).
-           Real by_blocks = -1, by_stencil = -1;
-           const auto cannot_close = [&](Real gap) {
-             if (!(gap > 0)) return false;
-             if (by_blocks < 0)
-               by_blocks = dt * (speed.near(h.point, h.normal, near_last) + h.velocity.norm());
-             if (by_blocks <= gap) return true;
-             if (by_stencil < 0) by_stencil = closes_here(h.point, h.normal, h.velocity) * dt;
-             return by_stencil <= gap;
-           };
-           // First with the least gap the particle's object allows, without its rest depth
-           // (read by id, out of memory order): this drops most candidates, and a particle
-           // dropped at a smaller gap is dropped at its own.
-           if (cannot_close(h.distance - radius.widest(q))) return;
            if (h.distance >= radius.most(q) + walls[w].travel) return;
            const Real gap = h.distance - radius.along(q, h.normal);
-           if (cannot_close(gap)) return;
+           if (gap > 0 &&
+               (dt * (speed.near(h.point, h.normal, near_last) + h.velocity.norm()) <= gap ||
+                !closes_here(h.point, h.normal, h.velocity, gap)))
+             return;
            mine.push_back({static_cast<std::uint32_t>(q), w, h, gap});
          });
     for (const Candidate& c : mine) ++at[c.wall * threads + t + 1];
@@ -284,27 +270,6 @@ void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt
   }
 }
 
-/// The bounding box of the m > 0 points at `x`, two points a round: the six coordinates of a
-/// pair lie side by side, so each running bound is one vector operation on any x86-64.
-std::pair<Vec3, Vec3> bounds(const Vec3* x, std::ptrdiff_t m) {
-  static_assert(sizeof(Vec3) == 3 * sizeof(Real));
-  const Real* c = x[0].data();
-  Real lo[6], hi[6];
-  for (int j = 0; j < 6; ++j) lo[j] = hi[j] = c[j % 3];
-  for (std::ptrdiff_t i = 0; i + 1 < m; i += 2)
-    for (int j = 0; j < 6; ++j) {
-      lo[j] = std::min(lo[j], c[3 * i + j]);
-      hi[j] = std::max(hi[j], c[3 * i + j]);
-    }
-  Vec3 a(std::min(lo[0], lo[3]), std::min(lo[1], lo[4]), std::min(lo[2], lo[5]));
-  Vec3 b(std::max(hi[0], hi[3]), std::max(hi[1], hi[4]), std::max(hi[2], hi[5]));
-  if (m % 2) {
-    a = a.cwiseMin(x[m - 1]);
-    b = b.cwiseMax(x[m - 1]);
-  }
-  return {a, b};
-}
-
 /// Scans particles [first, last) of `x` against the planes of normals `normal` through
 /// `point`, moving at `velocity`, calling `keep(q, w, hit)` for each particle q within
 /// `reach[w]` of plane w. The particles go in tiles that stay in cache: a plane that the
@@ -321,7 +286,11 @@ void scan_planes(const std::vector<Vec3>& x, const std::vector<Vec3>& normal,
   for (std::ptrdiff_t tile = first; tile < last; tile += kTile) {
     const std::ptrdiff_t m = std::min(kTile, last - tile);
     const Vec3* xt = &x[tile];
-    const auto [lo, hi] = bounds(xt, m);
+    Vec3 lo = xt[0], hi = xt[0];
+    for (std::ptrdiff_t i = 1; i < m; ++i) {
+      lo = lo.cwiseMin(xt[i]);
+      hi = hi.cwiseMax(xt[i]);
+    }
     for (std::size_t w = 0; w < normal.size(); ++w) {
       const Vec3 n = normal[w];
       const Real c = n.dot(point[w]), r = reach[w];
@@ -1191,7 +1160,7 @@ void find_contacts_with(const std::vector<WallPlane>& planes,
   const Real fastest = speed.fastest;
   const auto travel = [&](Real wall_speed) { return std::min(cell, dt * (fastest + wall_speed)); };
   const ParticleRadius particle_radius{p, radius, st.rest_depth};
-  const StencilClosing<K> closes{g, {}};
+  const StencilClosing<K> closes{g, dt, {}};
   // The planes, in one pass over the particles. A plane that coincides with one listed
   // before it (a floor under a box's bottom face, moving alike) is left out: its contacts would
   // pose the same condition twice, and split the normal impulse between the two, so that each

@@ -108,6 +108,39 @@ TEST_CASE("P2G gives the same grid for 1 and 2 threads", "[transfers]") {
   }
 }
 
+TEST_CASE("for_each_slab runs every slab once, each odd one after the even ones beside it",
+          "[transfers]") {
+  for (int slabs : {1, 2, 5, 16}) {
+    ParticleOrder ord;
+    ord.order.resize(64 * slabs);
+    for (int s = 0; s <= slabs; ++s) ord.slab_start.push_back(64 * s);
+    for (long parallel_from : {0L, 1L << 30}) {
+      // The slabs in the order they finished, each under the lock of one critical section.
+      std::vector<int> finished;
+      std::vector<int> started_after(slabs, -1);  // how many had finished when it started
+      for_each_slab(ord, parallel_from, [&](int s) {
+#pragma omp critical
+        started_after[s] = static_cast<int>(finished.size());
+        // Some work, so that slabs overlap on two threads.
+        volatile double sink = 0;
+        for (int i = 0; i < 20000 * (s % 3 + 1); ++i) sink = sink + i;
+#pragma omp critical
+        finished.push_back(s);
+      });
+      REQUIRE(static_cast<int>(finished.size()) == slabs);
+      std::vector<int> at(slabs);
+      for (int k = 0; k < slabs; ++k) at[finished[k]] = k;
+      std::vector<int> sorted = finished;
+      std::sort(sorted.begin(), sorted.end());
+      for (int s = 0; s < slabs; ++s) CHECK(sorted[s] == s);
+      for (int s = 1; s < slabs; s += 2) {
+        CHECK(at[s - 1] < started_after[s]);
+        if (s + 1 < slabs) CHECK(at[s + 1] < started_after[s]);
+      }
+    }
+  }
+}
+
 TEST_CASE("the stress impulse scattered with the momentum equals the force applied after",
           "[transfers]") {
   // PIC folds dt f_i into the momentum; FLIP scatters f_i and applies it after grid_update.
