@@ -20,7 +20,7 @@ constexpr Real kFitSpread = 1e-6;
 /// particles that run at once never write the same node.
 template <class Fn>
 void for_each_by_slab(const ParticleOrder& order, Fn&& f) {
-  for_each_slab(order, kParallelMinItems, [&](int s) {
+  for_each_slab(order, [&](int s) {
     for (std::size_t at = order.slab_start[s]; at < order.slab_start[s + 1]; ++at)
       f(order.order[at]);
   });

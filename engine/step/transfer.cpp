@@ -348,7 +348,7 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
 
 template <Kernel K, bool kApic, bool kImpulse, bool kMls = false>
 void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt, Grid& g) {
-  for_each_slab(ord, kParallelMinItems, [&](int s) {
+  for_each_slab(ord, [&](int s) {
     scatter_range<K, kApic, kImpulse, kMls>(p, ord, ord.slab_start[s], ord.slab_start[s + 1], dt,
                                             g);
   });

@@ -50,7 +50,7 @@ struct ParticleOrder {
 /// done with its even slabs goes on to an odd one instead of waiting at a barrier for the
 /// last even slab (slabs end at whole planes of cells, so their particle counts differ).
 template <class Fn>
-void for_each_slab(const ParticleOrder& order, long parallel_from, Fn&& f) {
+void for_each_slab(const ParticleOrder& order, Fn&& f, long parallel_from = kParallelMinItems) {
   const int slabs = static_cast<int>(order.slab_start.size()) - 1, evens = (slabs + 1) / 2;
   const auto slab = [evens](int k) { return k < evens ? 2 * k : 2 * (k - evens) + 1; };
   if (static_cast<long>(order.order.size()) < parallel_from) {

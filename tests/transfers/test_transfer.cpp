@@ -118,7 +118,7 @@ TEST_CASE("for_each_slab runs every slab once, each odd one after the even ones 
       // The slabs in the order they finished, each under the lock of one critical section.
       std::vector<int> finished;
       std::vector<int> started_after(slabs, -1);  // how many had finished when it started
-      for_each_slab(ord, parallel_from, [&](int s) {
+      const auto run = [&](int s) {
 #pragma omp critical
         started_after[s] = static_cast<int>(finished.size());
         // Some work, so that slabs overlap on two threads.
@@ -126,7 +126,8 @@ TEST_CASE("for_each_slab runs every slab once, each odd one after the even ones 
         for (int i = 0; i < 20000 * (s % 3 + 1); ++i) sink = sink + i;
 #pragma omp critical
         finished.push_back(s);
-      });
+      };
+      for_each_slab(ord, run, parallel_from);
       REQUIRE(static_cast<int>(finished.size()) == slabs);
       std::vector<int> at(slabs);
       for (int k = 0; k < slabs; ++k) at[finished[k]] = k;

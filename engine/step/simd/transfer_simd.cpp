@@ -605,7 +605,7 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
 template <Kernel K, Transfer T>
 void scatter_all(const Particles& p, const ParticleOrder& ord, Real dt,
                  std::span<const BatchModel> fold, Grid& g) {
-  for_each_slab(ord, kParallelMinItems, [&](int s) {
+  for_each_slab(ord, [&](int s) {
     scatter_range<K, T>(p, ord, ord.slab_start[s], ord.slab_start[s + 1], dt, fold, g);
   });
 }
