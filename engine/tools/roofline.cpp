@@ -54,6 +54,16 @@ HWY_EXPORT(FmaFloat);
 HWY_EXPORT(FmaDouble);
 HWY_EXPORT(FloatLanes);
 HWY_EXPORT(TargetName);
+
+// Dispatched from inside this namespace: with a single target (a -march=native build whose
+// baseline is the best target) HWY_DYNAMIC_DISPATCH names the target's namespace directly, which
+// exists only in here (roofline::N_AVX3_DL, not N_AVX3_DL::roofline).
+double fma_float(long iters, double* sink) { return HWY_DYNAMIC_DISPATCH(FmaFloat)(iters, sink); }
+double fma_double(long iters, double* sink) {
+  return HWY_DYNAMIC_DISPATCH(FmaDouble)(iters, sink);
+}
+const char* target_name() { return HWY_DYNAMIC_DISPATCH(TargetName)(); }
+int float_lanes() { return HWY_DYNAMIC_DISPATCH(FloatLanes)(); }
 }  // namespace roofline
 
 namespace {
@@ -118,11 +128,11 @@ MachinePeaks measure_machine_peaks(int threads, int repeats) {
   if (threads > 0) omp_set_num_threads(threads);
   MachinePeaks p;
   p.threads = omp_get_max_threads();
-  p.simd_target = HWY_DYNAMIC_DISPATCH(roofline::TargetName)();
-  p.float_lanes = HWY_DYNAMIC_DISPATCH(roofline::FloatLanes)();
+  p.simd_target = roofline::target_name();
+  p.float_lanes = roofline::float_lanes();
   const long iters = 20000000;
-  p.float_gflops = best_gflops(HWY_DYNAMIC_DISPATCH(roofline::FmaFloat), iters, repeats);
-  p.double_gflops = best_gflops(HWY_DYNAMIC_DISPATCH(roofline::FmaDouble), iters, repeats);
+  p.float_gflops = best_gflops(roofline::fma_float, iters, repeats);
+  p.double_gflops = best_gflops(roofline::fma_double, iters, repeats);
   p.scalar_double_gflops = best_gflops(scalar_chains, iters, repeats);
   p.triad_gbytes = triad_bandwidth(repeats);
   omp_set_num_threads(saved);
