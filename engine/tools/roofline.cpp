@@ -58,12 +58,23 @@ HWY_EXPORT(TargetName);
 // Dispatched from inside this namespace: with a single target (a -march=native build whose
 // baseline is the best target) HWY_DYNAMIC_DISPATCH names the target's namespace directly, which
 // exists only in here (roofline::N_AVX3_DL, not N_AVX3_DL::roofline).
-double fma_float(long iters, double* sink) { return HWY_DYNAMIC_DISPATCH(FmaFloat)(iters, sink); }
+
+/// FmaFloat on the best target the CPU runs.
+double fma_float(long iters, double* sink) {
+  return HWY_DYNAMIC_DISPATCH(FmaFloat)(iters, sink);
+}
+/// FmaDouble on the best target the CPU runs.
 double fma_double(long iters, double* sink) {
   return HWY_DYNAMIC_DISPATCH(FmaDouble)(iters, sink);
 }
-const char* target_name() { return HWY_DYNAMIC_DISPATCH(TargetName)(); }
-int float_lanes() { return HWY_DYNAMIC_DISPATCH(FloatLanes)(); }
+/// The name of the best target the CPU runs.
+const char* target_name() {
+  return HWY_DYNAMIC_DISPATCH(TargetName)();
+}
+/// Float lanes of a full vector on the best target the CPU runs.
+int float_lanes() {
+  return HWY_DYNAMIC_DISPATCH(FloatLanes)();
+}
 }  // namespace roofline
 
 namespace {
