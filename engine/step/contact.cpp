@@ -149,7 +149,7 @@ struct StencilClosing {
   /// velocity `wall_velocity`) faster than `gap` / dt.
   bool operator()(const Vec3& point, const Vec3& n, const Vec3& wall_velocity, Real gap) {
     constexpr int N = KernelTraits<K>::kNodes;
-    const Vec3i base = make_stencil<K>(point, g.origin, g.inv_h).base;
+    const Vec3i base = stencil_base<K>(point, g.origin, g.inv_h);
     if (base != last.base || n != last.n || wall_velocity != last.wall_velocity) {
       std::size_t at[N * N * N];
       g.stencil_indices<N, true>(base, at);
@@ -477,23 +477,30 @@ void keep_acting_contacts(const std::vector<char>& acts,
   st.storage.assign(1, kNoNode);  // compact node 0: none, weight 0, no mass
   st.nodes.resize(st.weights.size());
   std::size_t kept = 0;
+  const std::size_t* last = nullptr;  // the last kept contact's storage indices
   for (std::size_t c = 0; c < st.size(); ++c) {
     if (!acts[c]) continue;
     copy_contact(st, c, kept);
-    for (int t = 0; t < S; ++t) {
-      st.weights[kept * S + t] = st.weights[c * S + t];
-      const std::size_t at = storage_index[c * S + t];
-      std::uint32_t node = 0;
-      if (at != kNoNode) {
-        std::int32_t& id = st.compact[at];
-        if (id < 0) {
-          id = static_cast<std::int32_t>(st.storage.size());
-          st.storage.push_back(at);
+    const std::size_t* here = &storage_index[c * S];
+    if (kept != c) std::copy_n(&st.weights[c * S], S, &st.weights[kept * S]);
+    // Most contacts share the stencil of the one before them.
+    if (last && std::equal(here, here + S, last))
+      std::copy_n(&st.nodes[(kept - 1) * S], S, &st.nodes[kept * S]);
+    else
+      for (int t = 0; t < S; ++t) {
+        const std::size_t at = here[t];
+        std::uint32_t node = 0;
+        if (at != kNoNode) {
+          std::int32_t& id = st.compact[at];
+          if (id < 0) {
+            id = static_cast<std::int32_t>(st.storage.size());
+            st.storage.push_back(at);
+          }
+          node = static_cast<std::uint32_t>(id);
         }
-        node = static_cast<std::uint32_t>(id);
+        st.nodes[kept * S + t] = node;
       }
-      st.nodes[kept * S + t] = node;
-    }
+    last = here;
     ++kept;
   }
   resize_contacts(st, kept);
@@ -588,34 +595,44 @@ void gather_stencils(Real dt, const Particles& p, const Grid& g, ContactState& s
   // ball rolls on the wall, not on its particles' centres; its impulse enters with the ghost
   // weights. Nodes without mass take no part, and the weights of the others are scaled to
   // sum to one.
-#pragma omp parallel for schedule(static) if (sn * S >= kParallelMinItems)
-  for (std::ptrdiff_t c = 0; c < sn; ++c) {
-    const auto s = make_stencil<K>(st.point[c], g.origin, g.inv_h);
-    std::size_t* at = &storage_index[c * S];
-    Real* w = &st.weights[c * S];
-    g.stencil_indices<N, true>(s.base, at);  // kNoStorage is kNoNode
-    int t;
-    for (t = 0; t < S; ++t)
-      if (at[t] != kNoNode && !(g.mass[at[t]] > 0)) at[t] = kNoNode;
-    ghost_weights<K>(s, st.point[c], st.normal[c], spacing[p.object[st.particle[c]]],
-                     st.force_weights, g, shared.rows(c), w);
-    Real sum = 0;
-    for (t = 0; t < S; ++t) {
-      w[t] = at[t] == kNoNode ? 0 : std::max(w[t], Real(0));
-      sum += w[t];
+#pragma omp parallel if (sn * S >= kParallelMinItems)
+  {
+    // The last stencil's nodes with mass and their velocities: the contacts come wall by wall
+    // in cell order, so most share the one before them (one copy per thread).
+    Vec3i last = Vec3i::Constant(std::numeric_limits<int>::min());
+    std::array<std::size_t, S> nodes;
+    std::array<Vec3, S> velocity;
+    velocity.fill(Vec3::Zero());
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t c = 0; c < sn; ++c) {
+      const auto s = make_stencil<K>(st.point[c], g.origin, g.inv_h);
+      if (s.base != last) {
+        last = s.base;
+        g.stencil_indices<N, true>(s.base, nodes.data());  // kNoStorage is kNoNode
+        for (int t = 0; t < S; ++t) {
+          if (nodes[t] != kNoNode && !(g.mass[nodes[t]] > 0)) nodes[t] = kNoNode;
+          velocity[t] = nodes[t] == kNoNode ? Vec3::Zero() : g.velocity[nodes[t]];
+        }
+      }
+      std::copy_n(nodes.begin(), S, &storage_index[c * S]);
+      Real* w = &st.weights[c * S];
+      ghost_weights<K>(s, st.point[c], st.normal[c], spacing[p.object[st.particle[c]]],
+                       st.force_weights, g, shared.rows(c), w);
+      Real sum = 0;
+      for (int t = 0; t < S; ++t) {
+        w[t] = nodes[t] == kNoNode ? 0 : std::max(w[t], Real(0));
+        sum += w[t];
+      }
+      // It acts if touching, or closing its gap within the substep at the velocity
+      // interpolated now (the solve's impulses only push particles away).
+      Vec3 u = Vec3::Zero();
+      for (int t = 0; t < S; ++t) {
+        w[t] = sum > 0 ? w[t] / sum : 0;
+        u += w[t] * velocity[t];
+      }
+      acts[c] = sum > 0 &&
+                (st.gap[c] <= 0 || (u - st.wall_velocity[c]).dot(st.normal[c]) < -st.gap[c] / dt);
     }
-    for (t = 0; t < S; ++t) w[t] = sum > 0 ? w[t] / sum : 0;
-    // It acts if touching, or closing its gap within the substep at the velocity
-    // interpolated now (the solve's impulses only push particles away).
-    Vec3 u = Vec3::Zero();
-    Real total = 0;
-    for (t = 0; t < S; ++t) {
-      if (at[t] == kNoNode) continue;
-      u += w[t] * g.velocity[at[t]];
-      total += w[t];
-    }
-    acts[c] = total != 0 &&
-              (st.gap[c] <= 0 || (u - st.wall_velocity[c]).dot(st.normal[c]) < -st.gap[c] / dt);
   }
   keep_acting_contacts(acts, storage_index, g, st);
 }
@@ -1226,10 +1243,13 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
       kernel, [&]<Kernel K>() { find_contacts_with<K>(planes, colliders, time, dt, p, g, st); });
 }
 
-Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
-                   const ContactSettings& settings, Kernel kernel, Real time, Real dt,
-                   const Particles& p, Grid& g, ContactState& st, ContactMemory& memory) {
-  find_contacts(planes, colliders, kernel, time, dt, p, g, st);
+void flag_contact_blocks(const ContactState& st, std::vector<char>& slots) {
+  for (std::size_t i = 1; i < st.storage.size(); ++i)
+    if (st.node_inv_mass[i] > 0) slots[st.storage[i] / Grid::kBlockNodes] = 1;
+}
+
+Real finish_contact(const ContactSettings& settings, Real dt, ContactState& st,
+                    ContactMemory& memory, Grid& g) {
   if (st.size() == 0) {
     memory.keep({}, {}, {}, dt);
     return 0;
@@ -1237,6 +1257,13 @@ Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Colli
   const Real work = solve_contact(settings, dt, st, memory);
   write_contact_velocities(st, g);
   return work;
+}
+
+Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
+                   const ContactSettings& settings, Kernel kernel, Real time, Real dt,
+                   const Particles& p, Grid& g, ContactState& st, ContactMemory& memory) {
+  find_contacts(planes, colliders, kernel, time, dt, p, g, st);
+  return finish_contact(settings, dt, st, memory, g);
 }
 
 }  // namespace mpm
