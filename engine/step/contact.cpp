@@ -1261,13 +1261,10 @@ void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Colli
       kernel, [&]<Kernel K>() { find_contacts_with<K>(planes, colliders, time, dt, p, g, st); });
 }
 
-void flag_contact_blocks(const ContactState& st, std::vector<char>& slots) {
-  for (std::size_t i = 1; i < st.storage.size(); ++i)
-    if (st.node_inv_mass[i] > 0) slots[st.storage[i] / Grid::kBlockNodes] = 1;
-}
-
-Real finish_contact(const ContactSettings& settings, Real dt, ContactState& st,
-                    ContactMemory& memory, Grid& g) {
+Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
+                   const ContactSettings& settings, Kernel kernel, Real time, Real dt,
+                   const Particles& p, Grid& g, ContactState& st, ContactMemory& memory) {
+  find_contacts(planes, colliders, kernel, time, dt, p, g, st);
   if (st.size() == 0) {
     memory.keep({}, {}, {}, dt);
     return 0;
@@ -1275,13 +1272,6 @@ Real finish_contact(const ContactSettings& settings, Real dt, ContactState& st,
   const Real work = solve_contact(settings, dt, st, memory);
   write_contact_velocities(st, g);
   return work;
-}
-
-Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
-                   const ContactSettings& settings, Kernel kernel, Real time, Real dt,
-                   const Particles& p, Grid& g, ContactState& st, ContactMemory& memory) {
-  find_contacts(planes, colliders, kernel, time, dt, p, g, st);
-  return finish_contact(settings, dt, st, memory, g);
 }
 
 }  // namespace mpm
