@@ -1,5 +1,7 @@
 #include "engine/step/transfer.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -10,8 +12,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include <omp.h>
-
+#include "engine/core/radix_sort.h"
 #include "engine/step/kernels.h"
 #include "engine/step/simd/transfer_simd.h"
 
@@ -122,34 +123,10 @@ void counting_sort(std::size_t cells, KeyOf&& key_of, int reach, ParticleOrder& 
 /// counting sort on up to 11 bits of the key), on one thread: time in proportion to the
 /// particles, where counting_sort's passes over the cells would cost more (a sparse box).
 void radix_sort(std::size_t cells, ParticleOrder& ord) {
-  const std::size_t n = ord.order.size();
   const std::vector<std::uint32_t>& keys = ord.keys;
-  const int bits = std::max(1, static_cast<int>(std::bit_width(cells - 1)));
-  const int passes = (bits + 10) / 11, digit = (bits + passes - 1) / passes;
-  const std::uint32_t mask = (std::uint32_t{1} << digit) - 1;
-  std::vector<std::uint32_t>& tmp = ord.scratch;
-  tmp.resize(n);
-  // Passes alternate between the two arrays and end in `order`; the first reads the keys in
-  // particle order.
-  std::uint32_t* src = nullptr;
-  std::uint32_t* dst = passes % 2 ? ord.order.data() : tmp.data();
-  std::array<std::uint32_t, std::size_t{1} << 11> digits;  // on the stack: no allocation
-  const std::span<std::uint32_t> at(digits.data(), std::size_t{1} << digit);
-  for (int pass = 0, shift = 0; pass < passes; ++pass, shift += digit) {
-    const auto particle = [&](std::size_t j) {
-      return src ? src[j] : static_cast<std::uint32_t>(j);
-    };
-    std::fill(at.begin(), at.end(), 0u);
-    for (std::size_t j = 0; j < n; ++j) ++at[(keys[particle(j)] >> shift) & mask];
-    std::uint32_t end = 0;
-    for (std::uint32_t& a : at) end += std::exchange(a, end);
-    for (std::size_t j = 0; j < n; ++j) {
-      const std::uint32_t i = particle(j);
-      dst[at[(keys[i] >> shift) & mask]++] = i;
-    }
-    src = dst;
-    dst = dst == tmp.data() ? ord.order.data() : tmp.data();
-  }
+  radix_order(
+      ord.order.size(), static_cast<int>(std::bit_width(cells - 1)),
+      [&](std::uint32_t i) { return keys[i]; }, ord.order, ord.scratch);
 }
 
 /// Sorts by the base cell of kernel K's stencil (dispatched once, not per particle), activates
