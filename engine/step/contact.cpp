@@ -211,63 +211,73 @@ struct Candidate {
 /// contact point allows: first bounded by the blocks around it (`speed`), then exactly by its
 /// stencil's nodes (`closes(point, normal, wall velocity, gap)`, StencilClosing).
 /// `scan(first, last, reach, keep)` tests particles [first, last) against every wall, calling
-/// `keep(q, w, hit)` for each within `reach[w]` of wall w. The contacts are appended wall by
-/// wall, each in particle order, whatever the thread count (each thread scans one contiguous
-/// chunk, and the chunks are joined in order).
+/// `keep(q, w, hit)` for each within `reach[w]` of wall w. The particles go in chunks of
+/// kChunk, handed out to the threads as they come free (the particles near the walls are
+/// seldom spread evenly over the index range). The contacts are appended wall by wall, each in
+/// particle order, whatever the thread count: each chunk keeps its own, and the chunks are
+/// joined in order.
 template <class Scan, class Closes>
 void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt,
                    const std::vector<WallReach>& walls, Scan&& scan, const Closes& closes,
                    ContactState& st) {
+  constexpr std::ptrdiff_t kChunk = 8192;
   const Particles& p = radius.p;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
   if (n == 0 || walls.empty()) return;
-  const int threads = n >= kParallelMinItems ? omp_get_max_threads() : 1;
   const Real widest =
       kRestDepthCap * *std::max_element(radius.half_spacing.begin(), radius.half_spacing.end());
   std::vector<Real> reach(walls.size());
   for (std::size_t w = 0; w < walls.size(); ++w) reach[w] = widest + walls[w].travel;
   const std::size_t nw = walls.size(), objects = radius.half_spacing.size(), base = st.size();
-  // Where each thread's contacts on each wall go: wall by wall, and within a wall thread by
-  // thread (at[w * threads + t]).
-  std::vector<std::size_t> at(nw * threads + 1, 0);
-#pragma omp parallel num_threads(threads)
+  const std::ptrdiff_t chunks = (n + kChunk - 1) / kChunk;
+  std::vector<std::vector<Candidate>> found(chunks);
+  // Where each chunk's contacts on each wall go: wall by wall, and within a wall chunk by
+  // chunk (at[w * chunks + k]).
+  std::vector<std::size_t> at(nw * chunks + 1, 0);
+  const bool par = n >= kParallelMinItems;
+#pragma omp parallel if (par)
   {
-    const int t = omp_get_thread_num();
-    std::vector<Candidate> mine;
     Closes closes_here = closes;  // its own last stencil
     GridSpeed::Last near_last;    // and last blocks
-    scan(n * t / threads, n * (t + 1) / threads, reach,
-         [&](std::ptrdiff_t q, std::uint32_t w, const WallHit& h) {
-           if (h.distance >= radius.most(q) + walls[w].travel) return;
-           const Real gap = h.distance - radius.along(q, h.normal);
-           if (gap > 0 &&
-               (dt * (speed.near(h.point, h.normal, near_last) + h.velocity.norm()) <= gap ||
-                !closes_here(h.point, h.normal, h.velocity, gap)))
-             return;
-           mine.push_back({static_cast<std::uint32_t>(q), w, h, gap});
-         });
-    for (const Candidate& c : mine) ++at[c.wall * threads + t + 1];
-#pragma omp barrier
+#pragma omp for schedule(dynamic, 1)
+    for (std::ptrdiff_t k = 0; k < chunks; ++k) {
+      std::vector<Candidate>& mine = found[k];
+      scan(k * kChunk, std::min(n, (k + 1) * kChunk), reach,
+           [&](std::ptrdiff_t q, std::uint32_t w, const WallHit& h) {
+             if (h.distance >= radius.most(q) + walls[w].travel) return;
+             const Real gap = h.distance - radius.along(q, h.normal);
+             if (gap > 0 &&
+                 (dt * (speed.near(h.point, h.normal, near_last) + h.velocity.norm()) <= gap ||
+                  !closes_here(h.point, h.normal, h.velocity, gap)))
+               return;
+             mine.push_back({static_cast<std::uint32_t>(q), w, h, gap});
+           });
+      for (const Candidate& c : mine) ++at[c.wall * chunks + k + 1];
+    }  // (a barrier)
 #pragma omp single
     {
       at[0] = base;
       for (std::size_t k = 1; k < at.size(); ++k) at[k] += at[k - 1];
       resize_contacts(st, at.back());
     }  // (a barrier)
-    std::vector<std::size_t> next(nw);
-    for (std::size_t w = 0; w < nw; ++w) next[w] = at[w * threads + t];
-    for (const Candidate& c : mine) {
-      const std::size_t k = next[c.wall]++;
-      const std::uint32_t q = c.particle;
-      st.particle[k] = q;
-      st.id[k] = p.id[q];
-      st.point[k] = c.hit.point;
-      st.normal[k] = c.hit.normal;
-      st.wall_velocity[k] = c.hit.velocity;
-      st.gap[k] = c.gap;
-      st.boundary[k] = walls[c.wall].boundary;
-      st.friction[k] = walls[c.wall].friction;
-      st.patch[k] = walls[c.wall].index * static_cast<std::uint32_t>(objects) + p.object[q];
+#pragma omp for schedule(dynamic, 1)
+    for (std::ptrdiff_t k = 0; k < chunks; ++k) {
+      if (found[k].empty()) continue;
+      std::vector<std::size_t> next(nw);
+      for (std::size_t w = 0; w < nw; ++w) next[w] = at[w * chunks + k];
+      for (const Candidate& c : found[k]) {
+        const std::size_t i = next[c.wall]++;
+        const std::uint32_t q = c.particle;
+        st.particle[i] = q;
+        st.id[i] = p.id[q];
+        st.point[i] = c.hit.point;
+        st.normal[i] = c.hit.normal;
+        st.wall_velocity[i] = c.hit.velocity;
+        st.gap[i] = c.gap;
+        st.boundary[i] = walls[c.wall].boundary;
+        st.friction[i] = walls[c.wall].friction;
+        st.patch[i] = walls[c.wall].index * static_cast<std::uint32_t>(objects) + p.object[q];
+      }
     }
   }
 }
