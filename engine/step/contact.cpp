@@ -809,30 +809,48 @@ Members merge_shared_stencils(const std::vector<std::uint32_t>& order, ContactSt
     }
     return m;
   }
-  std::vector<Vec3> normal(ng, Vec3::Zero()), wall_velocity(ng, Vec3::Zero());
-  std::vector<Real> gap(ng, std::numeric_limits<Real>::max()), weights(ng * S, 0);
-  st.count.assign(ng, 0);
-  for (std::size_t c = 0; c < nc; ++c) {
-    const std::uint32_t g = m.group[c];
-    normal[g] += st.normal[c];
-    wall_velocity[g] += st.wall_velocity[c];
-    gap[g] = std::min(gap[g], st.gap[c]);
-    st.count[g] += 1;
-    for (int t = 0; t < S; ++t) weights[g * S + t] += st.weights[from(c) * S + t];
+  // Each group's members in contact order, so that the groups are summed in parallel and
+  // each in that order, whatever the thread count.
+  std::vector<std::uint32_t> first(ng + 1, 0), member(nc);
+  for (std::size_t c = 0; c < nc; ++c) ++first[m.group[c] + 1];
+  for (std::size_t g = 0; g < ng; ++g) first[g + 1] += first[g];
+  {
+    std::vector<std::uint32_t> next(first.begin(), first.end() - 1);
+    for (std::size_t c = 0; c < nc; ++c) member[next[m.group[c]]++] = static_cast<std::uint32_t>(c);
   }
+  std::vector<Vec3> normal(ng), wall_velocity(ng);
+  std::vector<Real> gap(ng), weights(ng * S);
   std::vector<std::uint32_t> nodes(ng * S);
-  for (std::size_t g = 0; g < ng; ++g) {
+  st.count.resize(ng);
+  const std::ptrdiff_t sg = static_cast<std::ptrdiff_t>(ng);
+#pragma omp parallel for schedule(static) if (static_cast <long>(nc) * S >= kParallelMinItems)
+  for (std::ptrdiff_t g = 0; g < sg; ++g) {
+    Vec3 nsum = Vec3::Zero(), vsum = Vec3::Zero();
+    Real least = std::numeric_limits<Real>::max();
+    Real* w = &weights[g * S];
+    std::fill(w, w + S, Real(0));
+    for (std::uint32_t k = first[g]; k < first[g + 1]; ++k) {
+      const std::size_t c = member[k];
+      nsum += st.normal[c];
+      vsum += st.wall_velocity[c];
+      least = std::min(least, st.gap[c]);
+      const Real* from_w = &st.weights[from(c) * S];
+      for (int t = 0; t < S; ++t) w[t] += from_w[t];
+    }
     const std::size_t c = leader[g];
-    const Real n = st.count[g];
-    const Real length = normal[g].norm();
-    normal[g] = length > 0 ? Vec3(normal[g] / length) : st.normal[c];
-    wall_velocity[g] /= n;
+    const Real n = static_cast<Real>(first[g + 1] - first[g]);
+    const Real length = nsum.norm();
+    normal[g] = length > 0 ? Vec3(nsum / length) : st.normal[c];
+    wall_velocity[g] = vsum / n;
+    gap[g] = least;
+    st.count[g] = n;
     for (int t = 0; t < S; ++t) {
-      weights[g * S + t] /= n;
+      w[t] /= n;
       nodes[g * S + t] = st.nodes[from(c) * S + t];
     }
-    copy_contact(st, c, g);
   }
+  // In place: a group's leader is never before it.
+  for (std::size_t g = 0; g < ng; ++g) copy_contact(st, leader[g], g);
   resize_contacts(st, ng);
   st.normal = std::move(normal);
   st.wall_velocity = std::move(wall_velocity);
