@@ -1,7 +1,5 @@
 #include "engine/step/contact.h"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -823,7 +821,7 @@ Members merge_shared_stencils(const std::vector<std::uint32_t>& order, ContactSt
   std::vector<std::uint32_t> nodes(ng * S);
   st.count.resize(ng);
   const std::ptrdiff_t sg = static_cast<std::ptrdiff_t>(ng);
-#pragma omp parallel for schedule(static) if (static_cast <long>(nc) * S >= kParallelMinItems)
+#pragma omp parallel for schedule(static) if (static_cast<long>(nc) * S >= kParallelMinItems)
   for (std::ptrdiff_t g = 0; g < sg; ++g) {
     Vec3 nsum = Vec3::Zero(), vsum = Vec3::Zero();
     Real least = std::numeric_limits<Real>::max();
