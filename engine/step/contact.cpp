@@ -917,6 +917,28 @@ struct ToNodes {
   bool rubs = false;         ///< Whether it rubs.
 };
 
+/// Contacts whose velocities interpolate_velocities interpolates side by side.
+constexpr int kInterleaved = 4;
+
+/// The velocities at contacts [first, first + m) of `st` (m <= kInterleaved), each interpolated
+/// from its stencil's nodes in stencil order. The contacts' sums run side by side: each sum is
+/// a chain of dependent additions, and interleaved they overlap (the same additions in the
+/// same order as one contact at a time).
+void interpolate_velocities(const ContactState& st, std::ptrdiff_t first, int m, Vec3* u) {
+  const int S = st.stencil;
+  const Real* w = &st.weights[first * S];
+  const std::uint32_t* node = &st.nodes[first * S];
+  for (int j = 0; j < kInterleaved; ++j) u[j] = Vec3::Zero();
+  if (m == kInterleaved) {
+    for (int t = 0; t < S; ++t)
+      for (int j = 0; j < kInterleaved; ++j)
+        u[j] += w[j * S + t] * st.node_velocity[node[j * S + t]];
+    return;
+  }
+  for (int j = 0; j < m; ++j)
+    for (int t = 0; t < S; ++t) u[j] += w[j * S + t] * st.node_velocity[node[j * S + t]];
+}
+
 /// One iteration's requests of every contact, and what Chebyshev's acceleration keeps of the
 /// iterations before: each contact's normal impulse an iteration before, and a held contact's
 /// accumulated tangential impulse now and an iteration before (the nodes keep their
@@ -953,36 +975,43 @@ struct ContactSteps {
   /// `residual` to the largest violation before the step (violation); returns the largest
   /// impulse change or request.
   Real take(ContactState& st, Real dt, Real omega, bool par, Real& residual) {
-    const int S = st.stencil;
     const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(st.size());
+    const std::ptrdiff_t sets = (sn + kInterleaved - 1) / kInterleaved;
     Real largest = 0, worst = 0;
 #pragma omp parallel for schedule(static) reduction(max : largest, worst) if (par)
-    for (std::ptrdiff_t c = 0; c < sn; ++c) {
-      Vec3 u = Vec3::Zero();
-      for (int t = 0; t < S; ++t)
-        u += st.weights[c * S + t] * st.node_velocity[st.nodes[c * S + t]];
-      worst = std::max(worst, violation(st, c, u));
-      const Real step = normal_impulse(st, c, u, dt);
-      const Real extrapolated = omega * (step - earlier[c]) + earlier[c];
-      const bool hold = held(st, c);
-      ln[c] = hold ? extrapolated : std::max(extrapolated, Real(0));
-      earlier[c] = st.normal_impulse[c];
-      const Vec3& n = st.normal[c];
-      const Vec3 ur = u - st.wall_velocity[c];
-      ask[c] = rubs(st, c) ? Vec3(-(ur - ur.dot(n) * n) * st.inv_k[c]) : Vec3::Zero();
-      if (hold) {  // its tangential impulse, accumulated, extrapolated alike
-        const Vec3 t = omega * (held_impulse[c] + ask[c] - held_earlier[c]) + held_earlier[c];
-        held_earlier[c] = held_impulse[c];
-        ask[c] = t - held_impulse[c];
-        held_impulse[c] = t;
-      }
-      dn[c] = ln[c] - st.normal_impulse[c];
-      largest = std::max({largest, std::abs(dn[c]), ask[c].norm()});
-      to_nodes[c].push = dn[c] * n + (hold ? ask[c] : Vec3::Zero());
-      st.normal_impulse[c] = ln[c];
+    for (std::ptrdiff_t set = 0; set < sets; ++set) {
+      const std::ptrdiff_t first = set * kInterleaved;
+      const int m = static_cast<int>(std::min<std::ptrdiff_t>(kInterleaved, sn - first));
+      Vec3 at[kInterleaved];
+      interpolate_velocities(st, first, m, at);
+      for (int j = 0; j < m; ++j) take_one(st, first + j, at[j], dt, omega, largest, worst);
     }
     residual = worst;
     return largest;
+  }
+
+  /// take() at contact c, from the velocity `u` interpolated at its point.
+  void take_one(ContactState& st, std::ptrdiff_t c, const Vec3& u, Real dt, Real omega,
+                Real& largest, Real& worst) {
+    worst = std::max(worst, violation(st, c, u));
+    const Real step = normal_impulse(st, c, u, dt);
+    const Real extrapolated = omega * (step - earlier[c]) + earlier[c];
+    const bool hold = held(st, c);
+    ln[c] = hold ? extrapolated : std::max(extrapolated, Real(0));
+    earlier[c] = st.normal_impulse[c];
+    const Vec3& n = st.normal[c];
+    const Vec3 ur = u - st.wall_velocity[c];
+    ask[c] = rubs(st, c) ? Vec3(-(ur - ur.dot(n) * n) * st.inv_k[c]) : Vec3::Zero();
+    if (hold) {  // its tangential impulse, accumulated, extrapolated alike
+      const Vec3 t = omega * (held_impulse[c] + ask[c] - held_earlier[c]) + held_earlier[c];
+      held_earlier[c] = held_impulse[c];
+      ask[c] = t - held_impulse[c];
+      held_impulse[c] = t;
+    }
+    dn[c] = ln[c] - st.normal_impulse[c];
+    largest = std::max({largest, std::abs(dn[c]), ask[c].norm()});
+    to_nodes[c].push = dn[c] * n + (hold ? ask[c] : Vec3::Zero());
+    st.normal_impulse[c] = ln[c];
   }
 
   /// The moving walls' work of this iteration's normal and held impulses, in contact order
