@@ -16,20 +16,18 @@
 #     --set simulation.dt=0.0005 --frames 5
 set -euo pipefail
 
+usage() { echo "usage: scripts/core_ceiling.sh [-n ROUNDS] [-b MPM] -- BENCH ARGS..." >&2; exit 2; }
 rounds=1
 mpm=build/bin/mpm
 while [ $# -gt 0 ] && [ "$1" != "--" ]; do
   case "$1" in
-    -n) rounds=$2; shift 2 ;;
-    -b) mpm=$2; shift 2 ;;
-    *) echo "usage: scripts/core_ceiling.sh [-n ROUNDS] [-b MPM] -- BENCH ARGS..." >&2; exit 2 ;;
+    -n) [ $# -ge 2 ] || usage; rounds=$2; shift 2 ;;
+    -b) [ $# -ge 2 ] || usage; mpm=$2; shift 2 ;;
+    *) usage ;;
   esac
 done
 [ "${1:-}" = "--" ] && shift
-if [ $# -eq 0 ] || ! [[ "$rounds" =~ ^[1-9][0-9]*$ ]]; then
-  echo "usage: scripts/core_ceiling.sh [-n ROUNDS] [-b MPM] -- BENCH ARGS..." >&2
-  exit 2
-fi
+{ [ $# -gt 0 ] && [[ "$rounds" =~ ^[1-9][0-9]*$ ]]; } || usage
 [ "$(nproc)" -ge 2 ] || { echo "core_ceiling.sh: needs two cores" >&2; exit 2; }
 command -v taskset > /dev/null || { echo "core_ceiling.sh: needs taskset (util-linux)" >&2; exit 2; }
 
