@@ -161,6 +161,37 @@ void check_scatter_agrees(Particles p, const GridDesc& gd, bool cell_order, Kern
   CHECK(worst > 0);  // the paths really differ: the SIMD one ran
 }
 
+/// Gathers p from g with the scalar and the SIMD path and checks that v, C and F agree to float
+/// rounding.
+void check_gather_agrees(const Grid& g, Transfer tr, Kernel kernel, Real dt, Particles a) {
+  Particles b = a;
+  grid_to_particles(g, tr, kernel, 0, dt, a, TransferPath::scalar);
+  grid_to_particles(g, tr, kernel, 0, dt, b, TransferPath::simd);
+  double vmax = 0;
+  for (const Vec3& v : g.velocity) vmax = std::max(vmax, v.cwiseAbs().maxCoeff());
+  // v = sum_i w_i v_i with weights summing to 1: node velocities rounded to float (u / 2),
+  // weights rounded (u), products of three (2 u), a chain of 2 N + 2 <= 10 FMAs: at most
+  // 16 u of sum w |v_i| <= vmax. C = B D^-1 multiplies by |corner| + N h <= (N + 1) h and
+  // 1/D = 4 / h^2 (linear: C = grad v, |grad w| <= 2 / h per axis, 3 axes): at most
+  // 16 u vmax (N + 1) 4 / h. F = F + dt G F is rounded to float by both paths (1 ulp of
+  // |F| <= 1.6: 2 u |F| apart at most) plus dt 3 |dG| |F|.
+  const double h = g.h.x(), N = kernel_nodes(kernel);
+  const double dv = 16 * kU * vmax, dC = 16 * kU * vmax * (N + 1) * 4 / h;
+  std::size_t bad = 0;
+  double seen = 0;
+  for (std::size_t q = 0; q < a.size(); ++q) {
+    seen = std::max(seen, (a.v[q] - b.v[q]).cwiseAbs().maxCoeff());
+    bad += (a.v[q] - b.v[q]).cwiseAbs().maxCoeff() > dv;
+    if (tr != Transfer::pic) bad += (to_real(a.C[q]) - to_real(b.C[q])).cwiseAbs().maxCoeff() > dC;
+    const double fmax = to_real(a.F[q]).cwiseAbs().maxCoeff();
+    bad += (to_real(a.F[q]) - to_real(b.F[q])).cwiseAbs().maxCoeff() >
+           2 * kU * fmax + dt * 3 * dC * fmax;
+  }
+  INFO("largest velocity difference " << seen << " (bound " << dv << ")");
+  CHECK(bad == 0);
+  CHECK(seen > 0);
+}
+
 }  // namespace
 
 TEST_CASE("SIMD and scalar particle-to-grid give the same grid to float rounding",
@@ -220,46 +251,33 @@ TEST_CASE("SIMD and scalar grid-to-particle give the same v, C and F to float ro
     return;
   }
   const Real dt = 1e-3;
-  // In memory order as sampled (a batch's 16 lanes in as many cells: the lanes gather), and
-  // in cell order as the reorder stage leaves it (about 11 particles per cell here: a batch
-  // spans two or three cells, whose node velocities are loaded once per cell).
+  // In memory order as sampled (a batch's 16 lanes in as many cells: the lanes gather), in
+  // cell order as the reorder stage leaves it (about 11 particles per cell here: a batch
+  // spans two or three cells, whose node velocities are loaded once per cell), and in cell
+  // order with each 32 particles' halves interleaved (lanes alternate between cells, as where
+  // particles cross a cell face between reorders: still loaded once per cell).
   for_each_case([&](bool cell_order, Kernel kernel, Transfer tr) {
-    Particles a = cloud(8);
-    Grid g(grid16(), false);
-    ParticleOrder ord;
-    sort_particles(a, kernel, g, ord);
-    particles_to_grid(a, ord, tr, kernel, dt, g, TransferPath::scalar);
-    grid_update(g);
-    if (cell_order) {
-      reorder_as(ord, a);
+    for (const bool interleaved : {false, true}) {
+      if (interleaved && !cell_order) continue;
+      INFO("interleaved " << interleaved);
+      Particles a = cloud(8);
+      Grid g(grid16(), false);
+      ParticleOrder ord;
+      sort_particles(a, kernel, g, ord);
+      particles_to_grid(a, ord, tr, kernel, dt, g, TransferPath::scalar);
+      grid_update(g);
+      if (cell_order) reorder_as(ord, a);
+      if (interleaved) {
+        ParticleOrder mixed;
+        for (std::uint32_t q = 0; q < a.size(); ++q) {
+          const std::uint32_t first = q / 32 * 32, k = q % 32;
+          const bool whole = first + 32 <= a.size();  // the last, partial 32 stay as they are
+          mixed.order.push_back(whole ? first + (k % 2) * 16 + k / 2 : q);
+        }
+        reorder_as(mixed, a);
+      }
+      check_gather_agrees(g, tr, kernel, dt, a);
     }
-    Particles b = a;
-    grid_to_particles(g, tr, kernel, 0, dt, a, TransferPath::scalar);
-    grid_to_particles(g, tr, kernel, 0, dt, b, TransferPath::simd);
-    double vmax = 0;
-    for (const Vec3& v : g.velocity) vmax = std::max(vmax, v.cwiseAbs().maxCoeff());
-    // v = sum_i w_i v_i with weights summing to 1: node velocities rounded to float (u / 2),
-    // weights rounded (u), products of three (2 u), a chain of 2 N + 2 <= 10 FMAs: at most
-    // 16 u of sum w |v_i| <= vmax. C = B D^-1 multiplies by |corner| + N h <= (N + 1) h and
-    // 1/D = 4 / h^2 (linear: C = grad v, |grad w| <= 2 / h per axis, 3 axes): at most
-    // 16 u vmax (N + 1) 4 / h. F = F + dt G F is rounded to float by both paths (1 ulp of
-    // |F| <= 1.6: 2 u |F| apart at most) plus dt 3 |dG| |F|.
-    const double h = g.h.x(), N = kernel_nodes(kernel);
-    const double dv = 16 * kU * vmax, dC = 16 * kU * vmax * (N + 1) * 4 / h;
-    std::size_t bad = 0;
-    double seen = 0;
-    for (std::size_t q = 0; q < a.size(); ++q) {
-      seen = std::max(seen, (a.v[q] - b.v[q]).cwiseAbs().maxCoeff());
-      bad += (a.v[q] - b.v[q]).cwiseAbs().maxCoeff() > dv;
-      if (tr != Transfer::pic)
-        bad += (to_real(a.C[q]) - to_real(b.C[q])).cwiseAbs().maxCoeff() > dC;
-      const double fmax = to_real(a.F[q]).cwiseAbs().maxCoeff();
-      bad += (to_real(a.F[q]) - to_real(b.F[q])).cwiseAbs().maxCoeff() >
-             2 * kU * fmax + dt * 3 * dC * fmax;
-    }
-    INFO("largest velocity difference " << seen << " (bound " << dv << ")");
-    CHECK(bad == 0);
-    CHECK(seen > 0);
   });
 }
 
