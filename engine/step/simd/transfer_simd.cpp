@@ -152,20 +152,64 @@ void store_interleaved(const float (*in)[kLanes], float* out) {
 /// True if the stored matrices are float, so load_matrices and store_matrices apply.
 constexpr bool kFloatMatrices = std::is_same_v<StoredReal, float>;
 
-/// True if order[b0, b0 + kLanes) are kLanes consecutive particles (the usual case after the
-/// reorder stage), whose matrices load_matrices can then read.
-inline bool consecutive_batch(const ParticleOrder& ord, std::size_t b0, std::size_t count) {
-  if (!kFloatMatrices || count < kLanes) return false;
-  const hn::RebindToUnsigned<DF> du;
-  return hn::AllTrue(du, hn::Eq(hn::LoadU(du, ord.order.data() + b0), hn::Iota(du, ord.order[b0])));
-}
+/// The scatter's particles order[b0, b0 + count) (count <= kLanes) as kLanes in a row, so that
+/// a batch loads their x, v, F and C as whole vectors (LoadInterleaved3, load_matrices) wherever
+/// they lie: the particle arrays themselves when they are kLanes consecutive particles, else
+/// copies of each lane's (the last particle repeated in unused lanes). Between reorders most
+/// batches are not consecutive: a particle that has crossed a cell face since the last reorder
+/// breaks its batch (3 % of two_cubes' batches were consecutive as it fell).
+class BatchParticles {
+ public:
+  const Vec3* x;             ///< kLanes positions, m.
+  const Vec3* v;             ///< kLanes velocities, m/s.
+  const StoredMat3* F;       ///< kLanes deformation gradients.
+  const StoredMat3* C;       ///< kLanes affine velocities, 1/s (with `affine` only).
+  std::uint32_t object = 0;  ///< Lane 0's object.
+  bool one_object = true;    ///< Whether every lane's object is lane 0's.
 
-/// True if the kLanes particles from `first` (a consecutive batch) all belong to one object,
-/// whose mass, volume and model the batch then sets once instead of looking up per lane.
-inline bool one_object(const Particles& p, std::uint32_t first) {
-  const hn::RebindToUnsigned<DF> du;
-  return hn::AllTrue(du,
-                     hn::Eq(hn::LoadU(du, p.object.data() + first), hn::Set(du, p.object[first])));
+  /// The particles order[b0, b0 + count) of `p`; C only if `affine`.
+  BatchParticles(const Particles& p, const ParticleOrder& ord, std::size_t b0, std::size_t count,
+                 bool affine) {
+    const std::uint32_t* at = ord.order.data() + b0;
+    const hn::RebindToUnsigned<DF> du;
+    if (count == kLanes && hn::AllTrue(du, hn::Eq(hn::LoadU(du, at), hn::Iota(du, at[0])))) {
+      x = &p.x[at[0]], v = &p.v[at[0]], F = &p.F[at[0]], C = affine ? &p.C[at[0]] : nullptr;
+      object = p.object[at[0]];
+      one_object =
+          hn::AllTrue(du, hn::Eq(hn::LoadU(du, p.object.data() + at[0]), hn::Set(du, object)));
+      return;
+    }
+    object = p.object[at[0]];
+    for (std::size_t l = 0; l < kLanes; ++l) {
+      const std::uint32_t q = at[std::min(l, count - 1)];
+      x_[l] = p.x[q];
+      v_[l] = p.v[q];
+      F_[l] = p.F[q];
+      if (affine) C_[l] = p.C[q];
+      one_object &= p.object[q] == object;
+    }
+    x = x_, v = v_, F = F_, C = affine ? C_ : nullptr;
+  }
+  BatchParticles(const BatchParticles&) = delete;  ///< The pointers may point into it.
+  BatchParticles& operator=(const BatchParticles&) = delete;
+
+ private:
+  alignas(64) Vec3 x_[kLanes];
+  alignas(64) Vec3 v_[kLanes];
+  alignas(64) StoredMat3 F_[kLanes];
+  alignas(64) StoredMat3 C_[kLanes];
+};
+
+/// The kLanes matrices at `m` in float lanes: out[3 c + r] holds M(r, c) of every lane.
+HWY_INLINE void load_matrix_lanes(const StoredMat3* m, VF out[9]) {
+  if constexpr (kFloatMatrices) {
+    load_matrices(m[0].data(), out);
+  } else {
+    alignas(64) float in[9][kLanes];
+    for (std::size_t l = 0; l < kLanes; ++l)
+      for (int e = 0; e < 9; ++e) in[e][l] = static_cast<float>(m[l].data()[e]);
+    for (int e = 0; e < 9; ++e) out[e] = hn::Load(DF(), in[e]);
+  }
 }
 
 /// -V0 tau of the kLanes particles order[b0, b0 + kLanes) (clamped to `end`), for the scatter:
@@ -215,31 +259,30 @@ void group_stress(const Particles& p, const ParticleOrder& ord, std::span<const 
   }
 }
 
-/// Fills `sb` with the stresses of order[b0, min(b0 + kLanes, end)); `consecutive`: they are
-/// kLanes consecutive particles (consecutive_batch), whose F load_matrices reads; `uniform`:
-/// and they belong to one object (one_object). Each model kind among the lanes runs its lane
-/// kernel once over the batch (lanes::neg_v0_tau), kept in its own lanes.
+/// Fills `sb` with the stresses of order[b0, min(b0 + kLanes, end)), whose F `bp` holds; if
+/// they belong to one object, its parameters are set once. Each model kind among the lanes
+/// runs its lane kernel once over the batch (lanes::neg_v0_tau), kept in its own lanes.
 void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
-                 std::size_t b0, std::size_t end, bool consecutive, bool uniform, StressBatch& sb) {
+                 std::size_t b0, std::size_t end, const BatchParticles& bp, StressBatch& sb) {
   const DF d;
   const DI di;
   sb.b0 = b0;
   sb.b1 = std::min(end, b0 + kLanes);
   const std::size_t count = sb.b1 - b0;
-  alignas(64) float in[9][kLanes], prm[lanes::kParams][kLanes], nv0[kLanes];
+  alignas(64) float prm[lanes::kParams][kLanes], nv0[kLanes];
   alignas(64) std::int32_t kind[kLanes];
   unsigned present = 0;  // bit k: some lane's model is of kind k
-  const BatchModel* one = uniform ? folded(fold, p.object[ord.order[b0]]) : nullptr;
-  if (one) {  // kLanes consecutive particles of one object: its parameters set once
+  const bool uniform = bp.one_object;
+  const BatchModel* one = uniform ? folded(fold, bp.object) : nullptr;
+  if (one) {  // particles of one object: its parameters set once
     float v[lanes::kParams];
     lanes::lane_params(*one, 1, v);
     for (int k = 0; k < lanes::kParams; ++k) hn::Store(hn::Set(d, v[k]), d, prm[k]);
-    if (one->state) {  // snow's Jp, consecutive too
-      const Real* s = one->state + (ord.order[b0] - one->first);
+    if (one->state)  // snow's Jp
       for (std::size_t l = 0; l < kLanes; ++l)
-        prm[lanes::kStateParam][l] = static_cast<float>(s[l]);
-    }
-    hn::Store(hn::Set(d, static_cast<float>(-p.object_volume0[p.object[ord.order[b0]]])), d, nv0);
+        prm[lanes::kStateParam][l] =
+            static_cast<float>(one->state[ord.order[b0 + std::min(l, count - 1)] - one->first]);
+    hn::Store(hn::Set(d, static_cast<float>(-p.object_volume0[bp.object])), d, nv0);
     present = 1u << static_cast<int>(one->kind);
   }
   for (std::size_t l = 0; l < kLanes && !uniform; ++l) {
@@ -248,10 +291,6 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
     const BatchModel* m = folded(fold, o);
     kind[l] = static_cast<std::int32_t>(m ? m->kind : BatchModel::Kind::none);
     if (m && l < count) present |= 1u << kind[l];
-    if (!consecutive) {
-      const StoredReal* f = p.F[pi].data();
-      for (int e = 0; e < 9; ++e) in[e][l] = static_cast<float>(f[e]);
-    }
     float v[lanes::kParams] = {};
     if (m) lanes::lane_params(*m, lane_state(*m, pi), v);
     for (int k = 0; k < lanes::kParams; ++k) prm[k][l] = v[k];
@@ -260,10 +299,7 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
   std::uint64_t bad = 0;
   if (present) {
     VF fv[9], tau[9], pv[lanes::kParams];
-    if (consecutive)
-      load_matrices(p.F[ord.order[b0]].data(), fv);
-    else
-      for (int e = 0; e < 9; ++e) fv[e] = hn::Load(d, in[e]);
+    load_matrix_lanes(bp.F, fv);
     for (int k = 0; k < lanes::kParams; ++k) pv[k] = hn::Load(d, prm[k]);
     const VF v0 = hn::Load(d, nv0);
     hn::Mask<DF> redo = hn::FirstN(d, 0);
@@ -323,10 +359,9 @@ struct ScatterBatch {
   alignas(64) float m[kLanes];               ///< Particle mass, kg.
 };
 
-/// Fills `pb` with order[b0, min(b0 + kLanes, end)); `sb` holds their stresses after.
-/// Long because it is the scatter's per-batch hot path: its lane arrays (weights, corners,
-/// velocities, C) live on its stack and in registers between the stencil and the momentum
-/// tables; split into functions they would be passed through memory.
+/// Fills `pb` with order[b0, min(b0 + kLanes, end)); `sb` holds their stresses after. One
+/// function: its lane arrays (weights, corners, velocities, C) live on its stack and in
+/// registers between the stencil and the momentum tables.
 template <Kernel K, Transfer T>
 void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
                 const Grid& g, Real dt, std::size_t b0, std::size_t end, StressBatch& sb,
@@ -344,52 +379,35 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
     hwy::Prefetch(&p.object[pi]);
     if constexpr (kAffine) hwy::Prefetch(&p.C[pi]);
   }
-  const bool consecutive = consecutive_batch(ord, b0, std::min(end, b0 + kLanes) - b0);
-  const bool uniform = consecutive && one_object(p, ord.order[b0]);
-  fill_stress(p, ord, fold, b0, end, consecutive, uniform, sb);
+  const BatchParticles bp(p, ord, b0, std::min(end, b0 + kLanes) - b0, kAffine);
+  fill_stress(p, ord, fold, b0, end, bp, sb);
   pb.b0 = sb.b0;
   pb.b1 = sb.b1;
   const std::size_t count = pb.b1 - pb.b0;
   alignas(64) float corner[3][kLanes], vel[3][kLanes], cm[3][3][kLanes];
   alignas(64) float wl[3][N][kLanes], dwl[3][N][kLanes];
   alignas(64) double xs[3][kLanes];
-  if constexpr (kAffine)
-    if (consecutive) {
-      VF c[9];
-      load_matrices(p.C[ord.order[b0]].data(), c);
-      for (int e = 0; e < 3; ++e)
-        for (int a = 0; a < 3; ++a) hn::Store(c[3 * a + e], d, cm[e][a]);
-    }
+  if constexpr (kAffine) {
+    VF c[9];
+    load_matrix_lanes(bp.C, c);
+    for (int e = 0; e < 3; ++e)
+      for (int a = 0; a < 3; ++a) hn::Store(c[3 * a + e], d, cm[e][a]);
+  }
   const hn::ScalableTag<double> dd;
   const hn::Rebind<float, decltype(dd)> dh;
-  if (consecutive) {
-    // x and v three axes at a time, as the gather loads x.
-    const std::uint32_t first = ord.order[b0];
-    for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd)) {
-      hn::Vec<decltype(dd)> x[3], v[3];
-      hn::LoadInterleaved3(dd, p.x[first + h].data(), x[0], x[1], x[2]);
-      hn::LoadInterleaved3(dd, p.v[first + h].data(), v[0], v[1], v[2]);
-      for (int a = 0; a < 3; ++a) {
-        hn::Store(x[a], dd, xs[a] + h);
-        hn::Store(hn::DemoteTo(dh, v[a]), dh, vel[a] + h);
-      }
-    }
-  }
-  if (uniform) hn::Store(hn::Set(d, static_cast<float>(p.mass(ord.order[b0]))), d, pb.m);
-  for (std::size_t l = 0; l < kLanes && !uniform; ++l) {
-    const std::uint32_t pi = ord.order[b0 + std::min(l, count - 1)];
-    pb.m[l] = static_cast<float>(p.mass(pi));
-    if (consecutive) continue;
+  // x and v three axes at a time, as the gather loads x.
+  for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd)) {
+    hn::Vec<decltype(dd)> x[3], v[3];
+    hn::LoadInterleaved3(dd, bp.x[h].data(), x[0], x[1], x[2]);
+    hn::LoadInterleaved3(dd, bp.v[h].data(), v[0], v[1], v[2]);
     for (int a = 0; a < 3; ++a) {
-      xs[a][l] = p.x[pi][a];
-      vel[a][l] = static_cast<float>(p.v[pi][a]);
-    }
-    if constexpr (kAffine) {
-      const StoredReal* C = p.C[pi].data();  // column-major
-      for (int e = 0; e < 3; ++e)
-        for (int a = 0; a < 3; ++a) cm[e][a][l] = static_cast<float>(C[3 * a + e]);
+      hn::Store(x[a], dd, xs[a] + h);
+      hn::Store(hn::DemoteTo(dh, v[a]), dh, vel[a] + h);
     }
   }
+  if (bp.one_object) hn::Store(hn::Set(d, static_cast<float>(p.object_mass[bp.object])), d, pb.m);
+  for (std::size_t l = 0; l < kLanes && !bp.one_object; ++l)
+    pb.m[l] = static_cast<float>(p.mass(ord.order[b0 + std::min(l, count - 1)]));
   // The stencil (base, 1D weights and derivatives) in double lanes, as make_stencil computes
   // it, each value rounded to float once.
   for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd))
