@@ -744,7 +744,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   // together, but between reorders the particles that cross a cell face interleave with those
   // that stay, so lanes are grouped by cell, not by runs of equal neighbours (two cells in
   // alternating lanes are two cells, not sixteen runs). Cells near a surface hold fewer
-  // particles: a batch of 16 lanes spans up to eight (99.9 % of them in two_cubes and jello).
+  // particles: 99.7 % of the batches of two_cubes and jello span eight or fewer.
   constexpr int kMaxCells = 8;
   std::size_t cell_lane[kMaxCells] = {};  // a lane of each cell
   hn::Mask<DF> in_cell[kMaxCells];
