@@ -752,7 +752,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   {
     const VI bx = hn::Load(di, base[0]), by = hn::Load(di, base[1]), bz = hn::Load(di, base[2]);
     auto left = hn::Eq(bx, bx);  // the lanes of no cell yet
-    while (!hn::AllFalse(di, left) && cells <= kMaxCells) {
+    while (!hn::AllFalse(di, left)) {
       if (cells == kMaxCells) {
         ++cells;  // too many: gathered lane by lane
         break;
