@@ -171,15 +171,14 @@ class BatchParticles {
   BatchParticles(const Particles& p, const ParticleOrder& ord, std::size_t b0, std::size_t count,
                  bool affine) {
     const std::uint32_t* at = ord.order.data() + b0;
+    object = p.object[at[0]];
     const hn::RebindToUnsigned<DF> du;
     if (count == kLanes && hn::AllTrue(du, hn::Eq(hn::LoadU(du, at), hn::Iota(du, at[0])))) {
       x = &p.x[at[0]], v = &p.v[at[0]], F = &p.F[at[0]], C = affine ? &p.C[at[0]] : nullptr;
-      object = p.object[at[0]];
       one_object =
           hn::AllTrue(du, hn::Eq(hn::LoadU(du, p.object.data() + at[0]), hn::Set(du, object)));
       return;
     }
-    object = p.object[at[0]];
     for (std::size_t l = 0; l < kLanes; ++l) {
       const std::uint32_t q = at[std::min(l, count - 1)];
       x_[l] = p.x[q];
@@ -200,16 +199,18 @@ class BatchParticles {
   alignas(64) StoredMat3 C_[kLanes];
 };
 
-/// The kLanes matrices at `m` in float lanes: out[3 c + r] holds M(r, c) of every lane.
-HWY_INLINE void load_matrix_lanes(const StoredMat3* m, VF out[9]) {
-  if constexpr (kFloatMatrices) {
-    load_matrices(m[0].data(), out);
-  } else {
-    alignas(64) float in[9][kLanes];
-    for (std::size_t l = 0; l < kLanes; ++l)
-      for (int e = 0; e < 9; ++e) in[e][l] = static_cast<float>(m[l].data()[e]);
-    for (int e = 0; e < 9; ++e) out[e] = hn::Load(DF(), in[e]);
+/// The matrices m[0, count) (count <= kLanes, the last repeated in unused lanes) in float
+/// lanes: out[3 c + r] holds M(r, c) of every lane. kLanes float matrices load as whole vectors
+/// (load_matrices), others lane by lane.
+HWY_INLINE void load_matrix_lanes(const StoredMat3* m, std::size_t count, VF out[9]) {
+  if constexpr (kFloatMatrices)
+    if (count == kLanes) return load_matrices(m[0].data(), out);
+  alignas(64) float in[9][kLanes];
+  for (std::size_t l = 0; l < kLanes; ++l) {
+    const StoredReal* M = m[std::min(l, count - 1)].data();
+    for (int e = 0; e < 9; ++e) in[e][l] = static_cast<float>(M[e]);
   }
+  for (int e = 0; e < 9; ++e) out[e] = hn::Load(DF(), in[e]);
 }
 
 /// -V0 tau of the kLanes particles order[b0, b0 + kLanes) (clamped to `end`), for the scatter:
@@ -299,7 +300,7 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
   std::uint64_t bad = 0;
   if (present) {
     VF fv[9], tau[9], pv[lanes::kParams];
-    load_matrix_lanes(bp.F, fv);
+    load_matrix_lanes(bp.F, kLanes, fv);
     for (int k = 0; k < lanes::kParams; ++k) pv[k] = hn::Load(d, prm[k]);
     const VF v0 = hn::Load(d, nv0);
     hn::Mask<DF> redo = hn::FirstN(d, 0);
@@ -389,7 +390,7 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
   alignas(64) double xs[3][kLanes];
   if constexpr (kAffine) {
     VF c[9];
-    load_matrix_lanes(bp.C, c);
+    load_matrix_lanes(bp.C, kLanes, c);
     for (int e = 0; e < 3; ++e)
       for (int a = 0; a < 3; ++a) hn::Store(c[3 * a + e], d, cm[e][a]);
   }
@@ -666,18 +667,9 @@ HWY_INLINE void gather_stencil(const Grid& g, const Particles& p, std::size_t q0
 /// lanes): Fin[e][l] is entry e (column-major) of lane l's F.
 HWY_INLINE void load_F_lanes(const Particles& p, std::size_t q0, std::size_t count,
                              float (*Fin)[kLanes]) {
-  [[maybe_unused]] const DF d;
-  if constexpr (kFloatMatrices)
-    if (count == kLanes) {
-      VF f[9];
-      load_matrices(p.F[q0].data(), f);
-      for (int e = 0; e < 9; ++e) hn::Store(f[e], d, Fin[e]);
-    }
-  if (!kFloatMatrices || count < kLanes)
-    for (std::size_t l = 0; l < kLanes; ++l) {
-      const StoredReal* F = p.F[q0 + std::min(l, count - 1)].data();
-      for (int e = 0; e < 9; ++e) Fin[e][l] = static_cast<float>(F[e]);
-    }
+  VF f[9];
+  load_matrix_lanes(&p.F[q0], count, f);
+  for (int e = 0; e < 9; ++e) hn::Store(f[e], DF(), Fin[e]);
 }
 
 /// Writes lanes [0, count) of the gather's results to particles [q0, q0 + count): F from
