@@ -5,6 +5,7 @@
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <utility>
 
 #include "engine/core/hash.h"
@@ -59,12 +60,15 @@ struct GridSpeed {
   const Grid& g;  ///< The grid.
   /// Per storage slot, [2 a] the largest velocity component along +a of its nodes with mass
   /// and [2 a + 1] along -a (at least 0), m/s.
-  std::vector<std::array<Real, 6>> block;
+  /// (Not zeroed when made: every slot is written. A vector's zeroing was a serial pass over
+  /// them on the calling thread, each substep.)
+  std::unique_ptr<std::array<Real, 6>[]> block;
   Real fastest = 0;  ///< The largest speed of any node with mass, m/s.
 
   /// The block maxima of `grid`, in parallel over its blocks.
-  explicit GridSpeed(const Grid& grid) : g(grid), block(grid.active_blocks()) {
-    const std::ptrdiff_t nb = static_cast<std::ptrdiff_t>(block.size());
+  explicit GridSpeed(const Grid& grid)
+      : g(grid), block(new std::array<Real, 6>[grid.active_blocks()]) {
+    const std::ptrdiff_t nb = static_cast<std::ptrdiff_t>(grid.active_blocks());
     const bool par = nb * Grid::kBlockNodes >= kParallelMinItems;
     Real squared = 0;
 #pragma omp parallel for schedule(static) reduction(max : squared) if (par)
@@ -499,9 +503,8 @@ void ghost_weights(const Stencil<KernelTraits<K>::kNodes>& s, const Vec3& point,
 /// order) and numbers the grid nodes of their stencils (grid storage indices `storage_index`
 /// of each contact's S nodes, kNoNode for none) compactly in first-touch order, node 0 being
 /// none; then takes each node's velocity, inverse mass and key, in parallel over the nodes.
-void keep_acting_contacts(const std::vector<char>& acts,
-                          const std::vector<std::size_t>& storage_index, const Grid& g,
-                          ContactState& st) {
+void keep_acting_contacts(const std::vector<char>& acts, const std::size_t* storage_index,
+                          const Grid& g, ContactState& st) {
   const int S = st.stencil;
   if (st.compact.size() < g.mass.size()) st.compact.resize(g.mass.size(), -1);
   st.storage.assign(1, kNoNode);  // compact node 0: none, weight 0, no mass
@@ -613,7 +616,8 @@ void gather_stencils(Real dt, const Particles& p, const Grid& g, ContactState& s
   constexpr int N = KernelTraits<K>::kNodes, S = N * N * N;
   const std::size_t nc = st.size();
   const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(nc);
-  std::vector<std::size_t> storage_index(nc * S);
+  // Not zeroed (every contact's stencil is written), as GridSpeed::block.
+  const std::unique_ptr<std::size_t[]> storage_index(new std::size_t[nc * S]);
   std::vector<char> acts(nc, 0);
   st.stencil = S;
   st.weights.resize(nc * S);
@@ -664,7 +668,7 @@ void gather_stencils(Real dt, const Particles& p, const Grid& g, ContactState& s
                 (st.gap[c] <= 0 || (u - st.wall_velocity[c]).dot(st.normal[c]) < -st.gap[c] / dt);
     }
   }
-  keep_acting_contacts(acts, storage_index, g, st);
+  keep_acting_contacts(acts, storage_index.get(), g, st);
 }
 
 /// The stencil entries of the contacts of `st` by node: node i's are contact[first[i]] to
