@@ -39,6 +39,13 @@ struct ParticleRadius {
 
   /// Rest depth of particle q, or -1 if it has none.
   Real depth(std::size_t q) const { return rest_depth.empty() ? -1 : rest_depth[p.id[q]]; }
+  /// The largest radius any particle can have: kRestDepthCap half spacings of the most widely
+  /// spaced object (0 without objects).
+  Real widest() const {
+    return half_spacing.empty()
+               ? 0
+               : kRestDepthCap * *std::max_element(half_spacing.begin(), half_spacing.end());
+  }
   /// The largest radius particle q can have against any wall.
   Real most(std::size_t q) const {
     return half_spacing[p.object[q]] * (depth(q) < 0 ? 1 : kRestDepthCap);
@@ -60,8 +67,7 @@ struct GridSpeed {
   const Grid& g;  ///< The grid.
   /// Per storage slot, [2 a] the largest velocity component along +a of its nodes with mass
   /// and [2 a + 1] along -a (at least 0), m/s.
-  /// (Not zeroed when made: every slot is written. A vector's zeroing was a serial pass over
-  /// them on the calling thread, each substep.)
+  /// Not zeroed when made: the constructor writes every slot.
   std::unique_ptr<std::array<Real, 6>[]> block;
   Real fastest = 0;  ///< The largest speed of any node with mass, m/s.
 
@@ -236,8 +242,7 @@ void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt
   const Particles& p = radius.p;
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
   if (n == 0 || walls.empty()) return;
-  const Real widest =
-      kRestDepthCap * *std::max_element(radius.half_spacing.begin(), radius.half_spacing.end());
+  const Real widest = radius.widest();
   std::vector<Real> reach(walls.size());
   for (std::size_t w = 0; w < walls.size(); ++w) reach[w] = widest + walls[w].travel;
   const std::size_t nw = walls.size(), objects = radius.half_spacing.size(), base = st.size();
@@ -1263,8 +1268,7 @@ void find_contacts_with(const std::vector<WallPlane>& planes,
   const Real fastest = speed.fastest;
   const auto travel = [&](Real wall_speed) { return std::min(cell, dt * (fastest + wall_speed)); };
   const ParticleRadius particle_radius{p, radius, st.rest_depth};
-  const Real widest =
-      radius.empty() ? 0 : kRestDepthCap * *std::max_element(radius.begin(), radius.end());
+  const Real widest = particle_radius.widest();
   const StencilClosing<K> closes{g, dt, {}};
   // The planes, in one pass over the particles. A plane that coincides with one listed
   // before it (a floor under a box's bottom face, moving alike) is left out: its contacts would
