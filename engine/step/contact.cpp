@@ -229,24 +229,28 @@ struct Candidate {
 /// contact point allows: first bounded by the blocks around it (`speed`), then exactly by its
 /// stencil's nodes (`closes(point, normal, wall velocity, gap)`, StencilClosing).
 /// `scan(first, last, reach, keep)` tests particles [first, last) against every wall, calling
-/// `keep(q, w, hit)` for each within `reach[w]` of wall w. The particles go in chunks of
-/// kChunk, handed out to the threads as they come free (the particles near the walls are
-/// seldom spread evenly over the index range). The contacts are appended wall by wall, each in
-/// particle order, whatever the thread count: each chunk keeps its own, and the chunks are
-/// joined in order.
+/// `keep(q, w, hit)` for each within `reach[w]` of wall w. Only the particles of `search` are
+/// scanned. They go in chunks of at most kChunk, handed out to the threads
+/// as they come free (the particles near the walls are seldom spread evenly over the index
+/// range). The contacts are appended wall by wall, each in particle order, whatever the thread
+/// count: each chunk keeps its own, and the chunks are joined in order.
 template <class Scan, class Closes>
 void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt,
-                   const std::vector<WallReach>& walls, Scan&& scan, const Closes& closes,
-                   ContactState& st) {
-  constexpr std::ptrdiff_t kChunk = 8192;
+                   const std::vector<WallReach>& walls, std::span<const IndexRange> search,
+                   Scan&& scan, const Closes& closes, ContactState& st) {
+  constexpr std::size_t kChunk = 8192;
   const Particles& p = radius.p;
+  if (p.size() == 0 || walls.empty()) return;
+  std::vector<IndexRange> piece;
+  for (const IndexRange& r : search)
+    for (std::size_t q = r.first; q < r.last; q += kChunk)
+      piece.push_back({q, std::min(r.last, q + kChunk)});
   const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(p.size());
-  if (n == 0 || walls.empty()) return;
   const Real widest = radius.widest();
   std::vector<Real> reach(walls.size());
   for (std::size_t w = 0; w < walls.size(); ++w) reach[w] = widest + walls[w].travel;
   const std::size_t nw = walls.size(), objects = radius.half_spacing.size(), base = st.size();
-  const std::ptrdiff_t chunks = (n + kChunk - 1) / kChunk;
+  const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>(piece.size());
   std::vector<std::vector<Candidate>> found(chunks);
   // Where each chunk's contacts on each wall go: wall by wall, and within a wall chunk by
   // chunk (at[w * chunks + k]).
@@ -259,8 +263,8 @@ void find_contacts(const ParticleRadius& radius, const GridSpeed& speed, Real dt
 #pragma omp for schedule(dynamic, 1)
     for (std::ptrdiff_t k = 0; k < chunks; ++k) {
       std::vector<Candidate>& mine = found[k];
-      scan(k * kChunk, std::min(n, (k + 1) * kChunk), reach,
-           [&](std::ptrdiff_t q, std::uint32_t w, const WallHit& h) {
+      scan(static_cast<std::ptrdiff_t>(piece[k].first), static_cast<std::ptrdiff_t>(piece[k].last),
+           reach, [&](std::ptrdiff_t q, std::uint32_t w, const WallHit& h) {
              if (h.distance >= radius.most(q) + walls[w].travel) return;
              const Real gap = h.distance - radius.along(q, h.normal);
              if (gap > 0 &&
@@ -1253,7 +1257,11 @@ namespace {
 template <Kernel K>
 void find_contacts_with(const std::vector<WallPlane>& planes,
                         const std::vector<Collider>& colliders, Real time, Real dt,
-                        const Particles& p, const Grid& g, ContactState& st) {
+                        const Particles& p, const Grid& g, const std::vector<IndexRange>* only,
+                        ContactState& st) {
+  const IndexRange everything{0, p.size()};
+  const std::span<const IndexRange> search =
+      only ? std::span<const IndexRange>(*only) : std::span<const IndexRange>(&everything, 1);
   st.clear();
   // A particle's radius is half its spacing: a body's outer particles lie that far inside
   // its surface (sampling.cpp), so the surface, not the particle centres, meets the wall.
@@ -1302,7 +1310,7 @@ void find_contacts_with(const std::vector<WallPlane>& planes,
     return widest * (1 + Real(1e-9)) + dt * closing * (1 + Real(1e-6));
   };
   find_contacts(
-      particle_radius, speed, dt, reach,
+      particle_radius, speed, dt, reach, search,
       [&](std::ptrdiff_t first, std::ptrdiff_t last, const std::vector<Real>& most, auto&& keep) {
         scan_planes(p.x, normals, points, velocities, first, last, most, tile_reach, keep);
       },
@@ -1314,7 +1322,7 @@ void find_contacts_with(const std::vector<WallPlane>& planes,
     const Vec3 margin = Vec3::Constant(widest + cell);
     const Eigen::AlignedBox<Real, 3> near(now.bounds.min() - margin, now.bounds.max() + margin);
     find_contacts(
-        particle_radius, speed, dt, {{c.boundary, c.friction, cell, wall++}},
+        particle_radius, speed, dt, {{c.boundary, c.friction, cell, wall++}}, search,
         [&](std::ptrdiff_t first, std::ptrdiff_t last, const std::vector<Real>& most, auto&& keep) {
           for (std::ptrdiff_t q = first; q < last; ++q) {
             const Vec3& x = p.x[q];
@@ -1337,15 +1345,17 @@ void find_contacts_with(const std::vector<WallPlane>& planes,
 
 void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
                    Kernel kernel, Real time, Real dt, const Particles& p, const Grid& g,
-                   ContactState& st) {
-  dispatch_kernel(
-      kernel, [&]<Kernel K>() { find_contacts_with<K>(planes, colliders, time, dt, p, g, st); });
+                   ContactState& st, const std::vector<IndexRange>* search) {
+  dispatch_kernel(kernel, [&]<Kernel K>() {
+    find_contacts_with<K>(planes, colliders, time, dt, p, g, search, st);
+  });
 }
 
 Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
                    const ContactSettings& settings, Kernel kernel, Real time, Real dt,
-                   const Particles& p, Grid& g, ContactState& st, ContactMemory& memory) {
-  find_contacts(planes, colliders, kernel, time, dt, p, g, st);
+                   const Particles& p, Grid& g, ContactState& st, ContactMemory& memory,
+                   const std::vector<IndexRange>* search) {
+  find_contacts(planes, colliders, kernel, time, dt, p, g, st, search);
   if (st.size() == 0) {
     memory.keep({}, {}, {}, dt);
     return 0;
@@ -1353,6 +1363,79 @@ Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Colli
   const Real work = solve_contact(settings, dt, st, memory);
   write_contact_velocities(st, g);
   return work;
+}
+
+std::vector<char> contact_chunks(const std::vector<WallPlane>& planes,
+                                 const std::vector<Collider>& colliders, const BufferLayers& layers,
+                                 Kernel kernel, Real time, const Particles& p, const Grid& g,
+                                 std::size_t chunk) {
+  const std::size_t n = p.size(), chunks = (n + chunk - 1) / chunk;
+  std::vector<char> near(chunks, 1);
+  const Real cell = g.h.maxCoeff();
+  Real widest = 0;  // ParticleRadius::widest
+  for (const Real v : p.object_volume0)
+    widest = std::max(widest, kRestDepthCap * Real(0.5) * std::cbrt(v));
+  const Real reach = widest + cell;  // find_contacts' travel is at most a cell
+  const Real width = kernel_nodes(kernel);
+  // Per plane: its normal, offset, and the distance beyond which a chunk is far from it.
+  struct Far {
+    Vec3 n;
+    Real c, beyond;
+  };
+  std::vector<Far> far_from;
+  for (const WallPlane& w : planes) {
+    const Real stencils = width * w.normal.cwiseAbs().dot(g.h);
+    far_from.push_back({w.normal, w.normal.dot(w.point + w.offset(time)),
+                        std::max(reach, stencils) * (1 + Real(1e-6))});
+  }
+  std::vector<Eigen::AlignedBox<Real, 3>> boxes;
+  for (const Collider& c : colliders) {
+    const Vec3 margin = Vec3::Constant(2 * reach + width * cell + cell);
+    const Eigen::AlignedBox<Real, 3> b = c.pose(time).bounds;
+    boxes.emplace_back(b.min() - margin, b.max() + margin);
+  }
+  const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(chunks);
+#pragma omp parallel for schedule(static) if (static_cast <long>(n) >= kParallelMinItems)
+  for (std::ptrdiff_t k = 0; k < count; ++k) {
+    const std::size_t first = static_cast<std::size_t>(k) * chunk;
+    const std::size_t last = std::min(n, first + chunk);
+    Vec3 lo = p.x[first], hi = lo;
+    bool finite = true;
+    for (std::size_t q = first; q < last; ++q) {
+      lo = lo.cwiseMin(p.x[q]);
+      hi = hi.cwiseMax(p.x[q]);
+      finite = finite && p.x[q].allFinite();
+    }
+    if (!finite) continue;
+    // The nodes of the chunk's stencils, any kernel's, with a node to spare on each side.
+    const Vec3 f = (lo - g.origin).cwiseProduct(g.inv_h), t = (hi - g.origin).cwiseProduct(g.inv_h);
+    bool free = true;
+    for (int a = 0; a < 3; ++a)
+      free = free && static_cast<int>(std::floor(f[a])) - 2 > layers.low[a] &&
+             static_cast<int>(std::floor(t[a])) + 3 < layers.high[a];
+    for (const Far& w : far_from) {
+      const Vec3 corner((w.n.x() > 0 ? lo : hi).x(), (w.n.y() > 0 ? lo : hi).y(),
+                        (w.n.z() > 0 ? lo : hi).z());
+      free = free && corner.dot(w.n) - w.c > w.beyond;
+    }
+    for (const auto& b : boxes) free = free && !b.intersects(Eigen::AlignedBox<Real, 3>(lo, hi));
+    if (free) near[k] = 0;
+  }
+  return near;
+}
+
+std::vector<IndexRange> marked_ranges(const std::vector<char>& near, std::size_t chunk,
+                                      std::size_t particles) {
+  std::vector<IndexRange> ranges;
+  for (std::size_t k = 0; k < near.size(); ++k) {
+    if (!near[k]) continue;
+    const std::size_t first = k * chunk, last = std::min(particles, first + chunk);
+    if (!ranges.empty() && ranges.back().last == first)
+      ranges.back().last = last;
+    else
+      ranges.push_back({first, last});
+  }
+  return ranges;
 }
 
 }  // namespace mpm

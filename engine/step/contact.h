@@ -38,6 +38,7 @@
 /// which a ball rolling on its particles hops and loses energy (docs/accuracy.md).
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "engine/core/particles.h"
@@ -137,13 +138,21 @@ struct ContactState {
   void clear();
 };
 
+/// Particles [first, last).
+struct IndexRange {
+  std::size_t first = 0;  ///< The first particle.
+  std::size_t last = 0;   ///< One past the last.
+};
+
 /// Finds the particles within reach of each plane wall and collider at time `time` (a
 /// particle's reach is its radius, half its spacing, plus one cell: no particle moves a cell
 /// in a substep), with the wall's normal, velocity at time + dt and condition, and their
 /// stencils' nodes and weights; `state` then holds the contacts and their nodes' velocities.
+/// Only the particles of `search` are looked at (all if it is null): the caller vouches that
+/// no other is within reach (contact_chunks).
 void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
                    Kernel kernel, Real time, Real dt, const Particles& particles, const Grid& grid,
-                   ContactState& state);
+                   ContactState& state, const std::vector<IndexRange>* search = nullptr);
 
 /// Solves the walls' conditions at the contacts on `state`'s node velocities (sorted by wall
 /// and particle id first, and those sharing a stencil and wall merged): sticky, the
@@ -162,6 +171,23 @@ void write_contact_velocities(const ContactState& state, Grid& grid);
 Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
                    const ContactSettings& settings, Kernel kernel, Real time, Real dt,
                    const Particles& particles, Grid& grid, ContactState& state,
-                   ContactMemory& memory);
+                   ContactMemory& memory, const std::vector<IndexRange>* search = nullptr);
+
+/// For each run of `chunk` consecutive particles (the last one shorter), whether the contact
+/// at time `time` or the domain boundary (its `layers`) may involve it: 1 where find_contacts
+/// may find one of its particles, or where a node of one of its particles' stencils may lie in
+/// a contact's stencil or in the layers; 0 where none can, so its particles gather the same
+/// velocities before the contact solve as after it. Bounds: a contact's point lies on its wall
+/// (or within two reaches of a collider's bounds, with a cell to spare), a particle's reach is
+/// at most the widest radius plus a cell, and two stencils of kernel width N cells share a
+/// node only within N cells per axis (widened by a part in 10^6 against rounding).
+std::vector<char> contact_chunks(const std::vector<WallPlane>& planes,
+                                 const std::vector<Collider>& colliders, const BufferLayers& layers,
+                                 Kernel kernel, Real time, const Particles& particles,
+                                 const Grid& grid, std::size_t chunk);
+
+/// The particle ranges of the chunks `near` marks (contact_chunks), consecutive ones joined.
+std::vector<IndexRange> marked_ranges(const std::vector<char>& near, std::size_t chunk,
+                                      std::size_t particles);
 
 }  // namespace mpm

@@ -360,7 +360,21 @@ void Simulation::add_boundary_stages() {
       .spectral_radius = scene_.simulation.contact_spectral_radius};
   if (!walls_.empty() || !colliders_.empty())
     add_stage("contact", [this, contact_settings](Real dt) {
-      const Kernel kernel = scene_.simulation.kernel;
+      const SimulationDesc& sd = scene_.simulation;
+      const Kernel kernel = sd.kernel;
+      // On one process, with the SIMD gather next, the particles no contact can reach are
+      // gathered beside the contact (split_gather.h); grid_to_particles gathers the rest.
+      if (!domain_ && sd.simd && sd.quadrature != Quadrature::domain &&
+          simd::supports(sd.transfer, kernel, grid_)) {
+        const auto contact = [&](const std::vector<IndexRange>& search) {
+          wall_work_ += apply_contact(walls_, colliders_, contact_settings, kernel, time_, dt,
+                                      particles_, grid_, contact_, contact_memory_, &search);
+        };
+        if (gather_beside(contact, walls_, colliders_,
+                          buffer_layers_behind_walls(walls_, time_ + dt, grid_), sd.transfer,
+                          kernel, time_, dt, grid_, particles_, split_gather_))
+          return;
+      }
       if (!domain_) {
         wall_work_ += apply_contact(walls_, colliders_, contact_settings, kernel, time_, dt,
                                     particles_, grid_, contact_, contact_memory_);
@@ -468,8 +482,11 @@ void Simulation::build_stages() {
   } else {
     add_stage("grid_to_particles", [this](Real dt) {
       const SimulationDesc& sd = scene_.simulation;
-      grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_,
-                        sd.simd ? TransferPath::simd : TransferPath::scalar, &last_advect_);
+      if (split_gather_.pending)
+        gather_rest(grid_, sd.transfer, sd.kernel, dt, particles_, split_gather_, &last_advect_);
+      else
+        grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_,
+                          sd.simd ? TransferPath::simd : TransferPath::scalar, &last_advect_);
       clamped_total_ += last_advect_.clamped;
     });
   }

@@ -15,6 +15,7 @@
 #include "engine/step/domain_quadrature.h"
 #include "engine/step/exchange.h"
 #include "engine/step/grid.h"
+#include "engine/step/split_gather.h"
 #include "engine/step/transfer.h"
 #include "engine/step/walls.h"
 #include "materials/registry.h"
@@ -107,6 +108,8 @@ class Simulation {
   const ContactMemory& contact_memory() const { return contact_memory_; }
   /// What advection saw in the last substep (non-finite positions, clamps, top speed).
   const AdvectStats& last_advect() const { return last_advect_; }
+  /// The far particles' gather beside the contact stage (split_gather.h): how often it ran.
+  const SplitGather& split_gather() const { return split_gather_; }
   /// Total energy, J: kinetic + elastic + gravitational (relative to the grid origin).
   Real total_energy() const;
   /// Index of the first particle with a non-finite position, velocity or F, or size().
@@ -183,6 +186,7 @@ class Simulation {
   std::vector<Collider> colliders_;
   ContactState contact_;  // the contact solve's buffers, reused between substeps
   ContactMemory contact_memory_;  // the contact impulses, kept between substeps (rank 0's)
+  SplitGather split_gather_;      // the far particles' gather, run beside the contact stage
   std::vector<Stage> stages_;
   double bound_seconds_ = 0;
   Real time_ = 0;

@@ -29,6 +29,8 @@ namespace HWY_NAMESPACE {
 void ScatterImpl(const Particles&, const ParticleOrder&, Transfer, Kernel, Real,
                  std::span<const BatchModel>, Grid&) {}
 void GatherImpl(const Grid&, Transfer, Kernel, Real, Particles&, AdvectStats*) {}
+void GatherRangeImpl(const Grid&, Transfer, Kernel, Real, Particles&, std::size_t, std::size_t,
+                     AdvectStats*) {}
 const char* TargetImpl() {
   return nullptr;
 }
@@ -41,6 +43,7 @@ using DI = hn::RebindToSigned<DF>;
 using VF = hn::Vec<DF>;
 using VI = hn::Vec<DI>;
 constexpr std::size_t kLanes = HWY_LANES(float);  ///< Lanes of a full vector on this target.
+static_assert(kGatherAlign % kLanes == 0, "gather_range's ranges start on a lane set");
 
 /// Rounds a grid value to float storage if the grid stores float (grid.precision: float).
 inline Real store_node(Real v, bool float_nodes) {
@@ -712,14 +715,17 @@ HWY_INLINE void store_gathered(const float (*out)[kLanes], std::size_t q0, std::
 }
 
 /// Gathers particles [q0, q0 + count), count <= kLanes, one lane each (the last lane's
-/// particle repeated in unused lanes, which are not written back). Long because it is the SIMD
+/// particle repeated in unused lanes, which are not written back). Their new velocities are
+/// also left in `v` (one row per axis), where advect_batch takes them from registers' copies
+/// instead of reloading the particles' just-stored v. Long because it is the SIMD
 /// gather's hot kernel: the stencil's weights, node addresses and running sums (about 40
 /// vectors) stay in registers from the stencil to the F and C update; split into functions
 /// they would be passed through memory. Its jobs, in order: the stencil (gather_stencil), F
 /// (load_F_lanes), the lanes' distinct cells, node addresses, weights, the stencil sums, C,
 /// the F update, then the stores (store_gathered).
 template <Kernel K, Transfer T>
-void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Particles& p) {
+void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Particles& p,
+                  float (*v)[kLanes]) {
   using Traits = KernelTraits<K>;
   constexpr int N = Traits::kNodes;
   constexpr bool kAffine = T == Transfer::apic || T == Transfer::mls;
@@ -921,15 +927,21 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   if constexpr (kAffine)
     for (int col = 0; col < 3; ++col)
       for (int r = 0; r < 3; ++r) hn::Store(C[r][col], d, out[9 + 3 * col + r]);
-  for (int e = 0; e < 3; ++e) hn::Store(sv[e], d, out[18 + e]);
+  for (int e = 0; e < 3; ++e) {
+    hn::Store(sv[e], d, out[18 + e]);
+    hn::Store(sv[e], d, v[e]);
+  }
   store_gathered<kAffine>(out, q0, count, p);
 }
 
 /// Advects particles [q0, q0 + count) with their new velocities: advect_particle, in double
 /// lanes for a full batch, where x + dt v is one fused multiply-add on targets that have one
-/// (AVX2, AVX-512), so a position may differ from advect_particle's in its last bit.
-void advect_batch(const AdvectBox& box, Real dt, std::size_t q0, std::size_t count, Particles& p,
-                  std::size_t& clamped, std::size_t& nonfinite, Real& v2) {
+/// (AVX2, AVX-512), so a position may differ from advect_particle's in its last bit. A full
+/// batch takes v from gather_batch's float rows `v` (widened to double, as store_gathered
+/// widens them), not from the particles' v just stored.
+void advect_batch(const AdvectBox& box, Real dt, std::size_t q0, std::size_t count,
+                  const float (*v_rows)[kLanes], Particles& p, std::size_t& clamped,
+                  std::size_t& nonfinite, Real& v2) {
   if (count < kLanes) {
     for (std::size_t q = q0; q < q0 + count; ++q)
       advect_particle(box, dt, p.v[q], p.x[q], clamped, nonfinite, v2);
@@ -940,9 +952,10 @@ void advect_batch(const AdvectBox& box, Real dt, std::size_t q0, std::size_t cou
   const VD vdt = hn::Set(dd, dt);
   VD top = hn::Set(dd, v2);
   for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd)) {
+    const hn::Rebind<float, decltype(dd)> dh;
     VD x[3], v[3];
     hn::LoadInterleaved3(dd, p.x[q0 + h].data(), x[0], x[1], x[2]);
-    hn::LoadInterleaved3(dd, p.v[q0 + h].data(), v[0], v[1], v[2]);
+    for (int a = 0; a < 3; ++a) v[a] = hn::PromoteTo(dd, hn::Load(dh, v_rows[a] + h));
     const VD s = hn::MulAdd(v[2], v[2], hn::MulAdd(v[1], v[1], hn::Mul(v[0], v[0])));
     top = hn::IfThenElse(hn::Lt(top, s), s, top);  // std::max(top, s): a NaN speed is not kept
     VD moved[3], c[3];
@@ -962,6 +975,27 @@ void advect_batch(const AdvectBox& box, Real dt, std::size_t q0, std::size_t cou
   v2 = hn::GetLane(hn::MaxOfLanes(dd, top));
 }
 
+/// Gathers (and with `advect` advects) particles [first, last) on the calling thread, in the
+/// lane sets gather_all makes of them (`first` a multiple of kLanes), adding the advection's
+/// counts and speed to `advect`.
+template <Kernel K, Transfer T>
+void gather_range(const Grid& g, Real dt, Particles& p, std::size_t first, std::size_t last,
+                  AdvectStats* advect) {
+  const AdvectBox box(g);
+  std::size_t clamped = 0, nonfinite = 0;
+  Real v2 = 0;
+  for (std::size_t q0 = first; q0 < last; q0 += kLanes) {
+    const std::size_t count = std::min(kLanes, last - q0);
+    alignas(64) float v[3][kLanes];
+    gather_batch<K, T>(g, dt, q0, count, p, v);
+    if (advect) advect_batch(box, dt, q0, count, v, p, clamped, nonfinite, v2);
+  }
+  if (!advect) return;
+  advect->clamped += clamped;
+  advect->nonfinite += nonfinite;
+  advect->max_speed = std::max(advect->max_speed, std::sqrt(v2));
+}
+
 template <Kernel K, Transfer T>
 void gather_all(const Grid& g, Real dt, Particles& p, AdvectStats* advect) {
   const std::size_t n = p.size();
@@ -978,8 +1012,9 @@ void gather_all(const Grid& g, Real dt, Particles& p, AdvectStats* advect) {
   for (std::ptrdiff_t b = 0; b < batches; ++b) {
     const std::size_t q0 = static_cast<std::size_t>(b) * kLanes;
     const std::size_t count = std::min(kLanes, n - q0);
-    gather_batch<K, T>(g, dt, q0, count, p);
-    if (advect) advect_batch(box, dt, q0, count, p, clamped, nonfinite, v2);
+    alignas(64) float v[3][kLanes];
+    gather_batch<K, T>(g, dt, q0, count, p, v);
+    if (advect) advect_batch(box, dt, q0, count, v, p, clamped, nonfinite, v2);
   }
   if (advect) *advect = {clamped, nonfinite, std::sqrt(v2)};
 }
@@ -1018,6 +1053,13 @@ void GatherImpl(const Grid& g, Transfer t, Kernel k, Real dt, Particles& p, Adve
   dispatch(t, k, [&]<Kernel K, Transfer T>() { gather_all<K, T>(g, dt, p, advect); });
 }
 
+void GatherRangeImpl(const Grid& g, Transfer t, Kernel k, Real dt, Particles& p, std::size_t first,
+                     std::size_t last, AdvectStats* advect) {
+  if (first % kLanes != 0) throw std::invalid_argument("gather_range: first not a lane multiple");
+  dispatch(t, k,
+           [&]<Kernel K, Transfer T>() { gather_range<K, T>(g, dt, p, first, last, advect); });
+}
+
 const char* TargetImpl() {
   return hwy::TargetName(HWY_TARGET);
 }
@@ -1032,6 +1074,7 @@ namespace mpm::simd {
 
 HWY_EXPORT(ScatterImpl);
 HWY_EXPORT(GatherImpl);
+HWY_EXPORT(GatherRangeImpl);
 HWY_EXPORT(TargetImpl);
 
 bool supports(Transfer transfer, Kernel, const Grid& grid) {
@@ -1046,6 +1089,11 @@ void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, 
 
 void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,
             AdvectStats* advect) {
+  prepare_gather(grid);
+  HWY_DYNAMIC_DISPATCH(GatherImpl)(grid, transfer, kernel, dt, p, advect);
+}
+
+void prepare_gather(const Grid& grid) {
   // Node velocities in float for the lane gathers: (x, y) pairs, then all z.
   const std::size_t nodes = grid.mass.size();
   grid.velocity_f.resize(3 * nodes);
@@ -1056,7 +1104,11 @@ void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particl
     grid.velocity_f[2 * i + 1] = static_cast<float>(grid.velocity[i].y());
     grid.velocity_f[2 * nodes + i] = static_cast<float>(grid.velocity[i].z());
   }
-  HWY_DYNAMIC_DISPATCH(GatherImpl)(grid, transfer, kernel, dt, p, advect);
+}
+
+void gather_range(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,
+                  std::size_t first, std::size_t last, AdvectStats* advect) {
+  HWY_DYNAMIC_DISPATCH(GatherRangeImpl)(grid, transfer, kernel, dt, p, first, last, advect);
 }
 
 const char* target_name() {

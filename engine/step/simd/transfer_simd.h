@@ -39,6 +39,18 @@ void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, 
 void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,
             AdvectStats* advect = nullptr);
 
+/// gather in parts: prepare_gather fills grid.velocity_f from grid.velocity, then each
+/// gather_range call gathers particles [first, last) on the calling thread (no parallel
+/// region; `first` a multiple of kGatherAlign), in the lane sets gather makes, so every
+/// particle gets gather's values. With `advect`, its counts are added there and its speed
+/// raised to the range's largest.
+void prepare_gather(const Grid& grid);
+/// The part of gather (after prepare_gather) for particles [first, last), on this thread.
+void gather_range(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,
+                  std::size_t first, std::size_t last, AdvectStats* advect);
+/// What gather_range's `first` must be a multiple of: the widest target's lanes, times four.
+inline constexpr std::size_t kGatherAlign = 64;
+
 /// Name of the instruction set the dispatch chose on this machine, e.g. "AVX3", or nullptr
 /// if it has none the SIMD path can use (then the scalar path runs).
 const char* target_name();

@@ -1,0 +1,100 @@
+#include "engine/step/split_gather.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cstdint>
+#include <exception>
+
+#include "engine/step/simd/transfer_simd.h"
+
+namespace mpm {
+
+namespace {
+
+/// Adds `part`'s counts to `whole` and raises its speed to part's.
+void combine(const AdvectStats& part, AdvectStats& whole) {
+  whole.clamped += part.clamped;
+  whole.nonfinite += part.nonfinite;
+  whole.max_speed = std::max(whole.max_speed, part.max_speed);
+}
+
+/// The chunks of `split` whose mark is `near`, in order.
+std::vector<std::uint32_t> chunks_marked(const SplitGather& split, char near) {
+  std::vector<std::uint32_t> chunks;
+  for (std::size_t k = 0; k < split.near.size(); ++k)
+    if (split.near[k] == near) chunks.push_back(static_cast<std::uint32_t>(k));
+  return chunks;
+}
+
+/// Gathers the chunks `chunks` on the team, each thread taking the next one as it comes free
+/// (this thread first runs `first`, if any), and adds the advection to split.advect.
+void gather_chunks(const std::vector<std::uint32_t>& chunks, const std::function<void()>& first,
+                   Transfer transfer, Kernel kernel, Real dt, const Grid& g, Particles& p,
+                   SplitGather& split) {
+  constexpr std::size_t C = simd::kGatherAlign, kLeast = 4;
+  std::atomic<std::size_t> next{0};
+  std::exception_ptr error;
+#pragma omp parallel if (static_cast <long>(p.size()) >= kParallelMinItems)
+  {
+    if (first && omp_get_thread_num() == 0) {
+      try {
+        first();
+      } catch (...) {
+        error = std::current_exception();
+      }
+    }
+    AdvectStats mine;
+    // Guided: a thread takes a share of what is left (at least kLeast chunks), so each works
+    // on long runs of particles and of the grid, as gather's own schedule does.
+    const std::size_t team = static_cast<std::size_t>(omp_get_num_threads());
+    for (;;) {
+      std::size_t i = next.load(std::memory_order_relaxed), take;
+      do {
+        if (i >= chunks.size()) break;
+        take = std::max(kLeast, (chunks.size() - i) / (2 * team));
+      } while (!next.compare_exchange_weak(i, i + take, std::memory_order_relaxed));
+      if (i >= chunks.size()) break;
+      for (std::size_t j = i; j < std::min(chunks.size(), i + take); ++j) {
+        const std::size_t q0 = chunks[j] * C;
+        simd::gather_range(g, transfer, kernel, dt, p, q0, std::min(p.size(), q0 + C), &mine);
+      }
+    }
+#pragma omp critical(mpm_split_gather)
+    combine(mine, split.advect);
+  }
+  if (error) std::rethrow_exception(error);
+}
+
+}  // namespace
+
+bool gather_beside(const ContactPass& contact, const std::vector<WallPlane>& planes,
+                   const std::vector<Collider>& colliders, const BufferLayers& layers,
+                   Transfer transfer, Kernel kernel, Real time, Real dt, const Grid& grid,
+                   Particles& particles, SplitGather& split) {
+  constexpr std::size_t C = simd::kGatherAlign;
+  if (omp_get_max_threads() < 2 || static_cast<long>(particles.size()) < kParallelMinItems)
+    return false;
+  split.near = contact_chunks(planes, colliders, layers, kernel, time, particles, grid, C);
+  const std::vector<std::uint32_t> far = chunks_marked(split, 0);
+  if (2 * far.size() < split.near.size()) return false;
+  split.advect = {};
+  split.pending = true;
+  ++split.runs;
+  const std::vector<IndexRange> search = marked_ranges(split.near, C, particles.size());
+  simd::prepare_gather(grid);
+  gather_chunks(
+      far, [&] { contact(search); }, transfer, kernel, dt, grid, particles, split);
+  return true;
+}
+
+void gather_rest(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& particles,
+                 SplitGather& split, AdvectStats* advect) {
+  simd::prepare_gather(grid);  // the contact's and the domain boundary's nodes changed
+  gather_chunks(chunks_marked(split, 1), {}, transfer, kernel, dt, grid, particles, split);
+  split.pending = false;
+  if (advect) *advect = split.advect;
+}
+
+}  // namespace mpm
