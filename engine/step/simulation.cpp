@@ -362,9 +362,11 @@ void Simulation::add_boundary_stages() {
     add_stage("contact", [this, contact_settings](Real dt) {
       const SimulationDesc& sd = scene_.simulation;
       const Kernel kernel = sd.kernel;
-      // On one process, with the SIMD gather next, the particles no contact can reach are
-      // gathered beside the contact (split_gather.h); grid_to_particles gathers the rest.
+      // On one process, with the SIMD gather next and a solve of some size last substep, the
+      // particles no contact can reach are gathered beside the contact (split_gather.h);
+      // grid_to_particles gathers the rest.
       if (!domain_ && sd.simd && sd.quadrature != Quadrature::domain &&
+          contact_.size() >= split_gather_.min_contacts &&
           simd::supports(sd.transfer, kernel, grid_)) {
         const auto contact = [&](const std::vector<IndexRange>& search) {
           wall_work_ += apply_contact(walls_, colliders_, contact_settings, kernel, time_, dt,

@@ -110,6 +110,8 @@ class Simulation {
   const AdvectStats& last_advect() const { return last_advect_; }
   /// The far particles' gather beside the contact stage (split_gather.h): how often it ran.
   const SplitGather& split_gather() const { return split_gather_; }
+  /// The same, to change when it splits (tests).
+  SplitGather& split_gather() { return split_gather_; }
   /// Total energy, J: kinetic + elastic + gravitational (relative to the grid origin).
   Real total_energy() const;
   /// Index of the first particle with a non-finite position, velocity or F, or size().

@@ -23,12 +23,20 @@
 
 namespace mpm {
 
+/// The fewest contacts the last substep's solve must have had for the next contact stage to be
+/// split: below it the stage is too short to hide much of the gather, and the split's own cost
+/// (the chunks' boxes, the float velocities filled twice, the solve on one thread) is not
+/// repaid (snowball_paper's ~40 contacts a substep against two_cubes' ~1,000).
+inline constexpr std::size_t kSplitMinContacts = 256;
+
 /// The gather split around the contact stage (the SIMD path, on one process).
 struct SplitGather {
   std::vector<char> near;  ///< Per chunk of simd::kGatherAlign particles: 1 if left for after.
   AdvectStats advect;      ///< What the advection of the chunks gathered so far saw.
   bool pending = false;    ///< gather_beside ran; gather_rest has the near chunks to gather.
   std::size_t runs = 0;    ///< Substeps gather_beside split so far.
+  /// Split only after a substep whose solve had at least this many contacts (tests lower it).
+  std::size_t min_contacts = kSplitMinContacts;
 };
 
 /// The contact stage as gather_beside runs it: given the particle ranges its search may look
