@@ -29,6 +29,15 @@ struct WallHit {
   Vec3 point;     ///< The particle's projection on the wall: its contact point.
 };
 
+/// Half the particle spacing of each object of `p`, m: a body's outer particles lie that far
+/// inside its surface (sampling.cpp), so the surface, not the particle centres, meets a wall.
+std::vector<Real> half_spacings(const Particles& p) {
+  std::vector<Real> half(p.object_volume0.size());
+  for (std::size_t o = 0; o < half.size(); ++o)
+    half[o] = Real(0.5) * std::cbrt(p.object_volume0[o]);
+  return half;
+}
+
 /// The radius of particle q against a wall of normal n (contact.h): half its spacing
 /// (`half_spacing`, per object), or on an elastic body's surface its rest depth times |F^T n|,
 /// at most 3/4 of the spacing (kRestDepthCap half spacings).
@@ -1263,11 +1272,7 @@ void find_contacts_with(const std::vector<WallPlane>& planes,
   const std::span<const IndexRange> search =
       only ? std::span<const IndexRange>(*only) : std::span<const IndexRange>(&everything, 1);
   st.clear();
-  // A particle's radius is half its spacing: a body's outer particles lie that far inside
-  // its surface (sampling.cpp), so the surface, not the particle centres, meets the wall.
-  std::vector<Real> radius(p.object_volume0.size());
-  for (std::size_t o = 0; o < radius.size(); ++o)
-    radius[o] = Real(0.5) * std::cbrt(p.object_volume0[o]);
+  const std::vector<Real> radius = half_spacings(p);
   // A contact acts if it is touching or closes its gap within the substep at the velocity
   // interpolated from its nodes (keep_acting_contacts), a mean of node velocities: no farther
   // than dt times the fastest node plus the wall's speed, and never a cell.
@@ -1372,9 +1377,8 @@ std::vector<char> contact_chunks(const std::vector<WallPlane>& planes,
   const std::size_t n = p.size(), chunks = (n + chunk - 1) / chunk;
   std::vector<char> near(chunks, 1);
   const Real cell = g.h.maxCoeff();
-  Real widest = 0;  // ParticleRadius::widest
-  for (const Real v : p.object_volume0)
-    widest = std::max(widest, kRestDepthCap * Real(0.5) * std::cbrt(v));
+  const std::vector<Real> half = half_spacings(p);
+  const Real widest = ParticleRadius{p, half, {}}.widest();
   const Real reach = widest + cell;  // find_contacts' travel is at most a cell
   const Real width = kernel_nodes(kernel);
   // Per plane: its normal, offset, and the distance beyond which a chunk is far from it.
@@ -1395,7 +1399,7 @@ std::vector<char> contact_chunks(const std::vector<WallPlane>& planes,
     boxes.emplace_back(b.min() - margin, b.max() + margin);
   }
   const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(chunks);
-#pragma omp parallel for schedule(static) if (static_cast <long>(n) >= kParallelMinItems)
+#pragma omp parallel for schedule(static) if (n >= static_cast <std::size_t>(kParallelMinItems))
   for (std::ptrdiff_t k = 0; k < count; ++k) {
     const std::size_t first = static_cast<std::size_t>(k) * chunk;
     const std::size_t last = std::min(n, first + chunk);

@@ -716,8 +716,8 @@ HWY_INLINE void store_gathered(const float (*out)[kLanes], std::size_t q0, std::
 
 /// Gathers particles [q0, q0 + count), count <= kLanes, one lane each (the last lane's
 /// particle repeated in unused lanes, which are not written back). Their new velocities are
-/// also left in `v` (one row per axis), where advect_batch takes them from registers' copies
-/// instead of reloading the particles' just-stored v. Long because it is the SIMD
+/// also left in `v` (one row per axis), where advect_batch takes them instead of reloading
+/// the particles' v it has just stored. Long because it is the SIMD
 /// gather's hot kernel: the stencil's weights, node addresses and running sums (about 40
 /// vectors) stay in registers from the stencil to the F and C update; split into functions
 /// they would be passed through memory. Its jobs, in order: the stencil (gather_stencil), F
