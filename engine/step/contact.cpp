@@ -1399,7 +1399,8 @@ std::vector<char> contact_chunks(const std::vector<WallPlane>& planes,
     boxes.emplace_back(b.min() - margin, b.max() + margin);
   }
   const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(chunks);
-#pragma omp parallel for schedule(static) if (n >= static_cast <std::size_t>(kParallelMinItems))
+  const bool par = n >= static_cast<std::size_t>(kParallelMinItems);
+#pragma omp parallel for schedule(static) if (par)
   for (std::ptrdiff_t k = 0; k < count; ++k) {
     const std::size_t first = static_cast<std::size_t>(k) * chunk;
     const std::size_t last = std::min(n, first + chunk);

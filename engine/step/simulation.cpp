@@ -365,21 +365,19 @@ void Simulation::add_boundary_stages() {
       // On one process, with the SIMD gather next and a solve of some size last substep, the
       // particles no contact can reach are gathered beside the contact (split_gather.h);
       // grid_to_particles gathers the rest.
-      if (!domain_ && sd.simd && sd.quadrature != Quadrature::domain &&
-          contact_.size() >= split_gather_.min_contacts &&
-          simd::supports(sd.transfer, kernel, grid_)) {
-        const auto contact = [&](const std::vector<IndexRange>& search) {
-          wall_work_ += apply_contact(walls_, colliders_, contact_settings, kernel, time_, dt,
-                                      particles_, grid_, contact_, contact_memory_, &search);
-        };
-        if (gather_beside(contact, walls_, colliders_,
-                          buffer_layers_behind_walls(walls_, time_ + dt, grid_), sd.transfer,
-                          kernel, time_, dt, grid_, particles_, split_gather_))
-          return;
-      }
       if (!domain_) {
-        wall_work_ += apply_contact(walls_, colliders_, contact_settings, kernel, time_, dt,
-                                    particles_, grid_, contact_, contact_memory_);
+        const auto contact = [&](const std::vector<IndexRange>* search) {
+          wall_work_ += apply_contact(walls_, colliders_, contact_settings, kernel, time_, dt,
+                                      particles_, grid_, contact_, contact_memory_, search);
+        };
+        const bool split =
+            sd.simd && sd.quadrature != Quadrature::domain &&
+            contact_.size() >= split_gather_.min_contacts &&
+            simd::supports(sd.transfer, kernel, grid_) &&
+            gather_beside(contact, walls_, colliders_,
+                          buffer_layers_behind_walls(walls_, time_ + dt, grid_), sd.transfer,
+                          kernel, time_, dt, grid_, particles_, split_gather_);
+        if (!split) contact(nullptr);
         return;
       }
       find_contacts(walls_, colliders_, kernel, time_, dt, particles_, grid_, contact_);

@@ -36,7 +36,8 @@ void gather_chunks(const std::vector<std::uint32_t>& chunks, const std::function
   constexpr std::size_t C = simd::kGatherAlign, kLeast = 4;
   std::atomic<std::size_t> next{0};
   std::exception_ptr error;
-#pragma omp parallel if (static_cast <long>(p.size()) >= kParallelMinItems)
+  const bool par = p.size() >= static_cast<std::size_t>(kParallelMinItems);
+#pragma omp parallel if (par)
   {
     if (first && omp_get_thread_num() == 0) {
       try {
@@ -85,7 +86,7 @@ bool gather_beside(const ContactPass& contact, const std::vector<WallPlane>& pla
   const std::vector<IndexRange> search = marked_ranges(split.near, C, particles.size());
   simd::prepare_gather(grid);
   gather_chunks(
-      far, [&] { contact(search); }, transfer, kernel, dt, grid, particles, split);
+      far, [&] { contact(&search); }, transfer, kernel, dt, grid, particles, split);
   return true;
 }
 

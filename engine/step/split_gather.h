@@ -40,8 +40,9 @@ struct SplitGather {
 };
 
 /// The contact stage as gather_beside runs it: given the particle ranges its search may look
-/// at (the near chunks), it finds and solves the contacts and writes the node velocities.
-using ContactPass = std::function<void(const std::vector<IndexRange>& search)>;
+/// at (the near chunks; null: all), it finds and solves the contacts and writes the node
+/// velocities.
+using ContactPass = std::function<void(const std::vector<IndexRange>* search)>;
 
 /// Marks the chunks (contact_chunks at time `time`, with the domain boundary's `layers`), fills
 /// the float node velocities (simd::prepare_gather), then runs `contact` on this thread while
