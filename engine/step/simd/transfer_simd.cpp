@@ -88,21 +88,35 @@ void lane_weights(D d, V x, V* w, V* dw) {
 }
 
 /// The stencil of kernel K along axis `a` for the positions x (m) in double lanes, as
-/// KernelTraits<K>::base and make_stencil compute it: stores the base node (int) at `base` and
-/// the offset of the base node from the particle, x_base - x (m, rounded to float once), at
-/// `corner`; returns fx - base (cells), from which the caller takes the weights.
+/// KernelTraits<K>::base and make_stencil compute it: sets `base` to the base node and
+/// `corner` to the offset of the base node from the particle, x_base - x (m); returns
+/// fx - base (cells), from which the caller takes the weights.
 template <Kernel K, class DD, class VD = hn::Vec<DD> >
-VD stencil_lanes(DD dd, VD x, const Grid& g, int a, float* corner, std::int32_t* base) {
-  const hn::Rebind<float, DD> dh;
-  const hn::Rebind<std::int32_t, DD> dih;
+VD stencil_lanes(DD dd, VD x, const Grid& g, int a, VD& corner, VD& base) {
   constexpr double kShift = K == Kernel::quadratic ? 0.5 : 0.0;
   constexpr double kFirst = K == Kernel::cubic ? -1.0 : 0.0;
   const VD fx = hn::Mul(hn::Sub(x, hn::Set(dd, g.origin[a])), hn::Set(dd, g.inv_h[a]));
-  const VD b = hn::Add(hn::Floor(hn::Sub(fx, hn::Set(dd, kShift))), hn::Set(dd, kFirst));
-  const VD x_base = hn::MulAdd(b, hn::Set(dd, g.h[a]), hn::Set(dd, g.origin[a]));
-  hn::Store(hn::DemoteTo(dh, hn::Sub(x_base, x)), dh, corner);
-  hn::Store(hn::DemoteTo(dih, b), dih, base);
-  return hn::Sub(fx, b);
+  base = hn::Add(hn::Floor(hn::Sub(fx, hn::Set(dd, kShift))), hn::Set(dd, kFirst));
+  corner = hn::Sub(hn::MulAdd(base, hn::Set(dd, g.h[a]), hn::Set(dd, g.origin[a])), x);
+  return hn::Sub(fx, base);
+}
+
+using DD = hn::ScalableTag<double>;  ///< Double lanes: kHalves vectors per float vector.
+using VD = hn::Vec<DD>;
+constexpr std::size_t kHalves = HWY_LANES(float) / HWY_LANES(double);
+
+/// The double lanes of one batch, h[0] the first (kHalves vectors), rounded to float (or
+/// int) and joined into one vector in registers. Stored as one whole vector, they can be
+/// loaded whole at once: a load that spans several narrower stores waits until they all reach
+/// the cache.
+template <class D>
+HWY_INLINE hn::Vec<D> join_lanes(D d, const VD* h) {
+  if constexpr (kHalves == 1) {
+    return hn::DemoteTo(d, h[0]);
+  } else {  // kHalves == 2
+    const hn::Half<D> dh;
+    return hn::Combine(d, hn::DemoteTo(dh, h[1]), hn::DemoteTo(dh, h[0]));
+  }
 }
 
 /// The kLanes float 3x3 matrices at `m` (consecutive, column-major), one per lane:
@@ -366,6 +380,35 @@ struct ScatterBatch {
 /// Fills `pb` with order[b0, min(b0 + kLanes, end)); `sb` holds their stresses after. One
 /// function: its lane arrays (weights, corners, velocities, C) live on its stack and in
 /// registers between the stencil and the momentum tables.
+/// The scatter's stencil of a batch (base, 1D weights and derivatives per cell) from the
+/// positions xs, in double lanes as make_stencil computes it, each value rounded to float once.
+template <Kernel K, int N = KernelTraits<K>::kNodes>
+HWY_INLINE void scatter_stencil(const Grid& g, const double (*xs)[kLanes], float (*corner)[kLanes],
+                                std::int32_t (*base)[kLanes], float (*wl)[N][kLanes],
+                                float (*dwl)[N][kLanes]) {
+  const DD dd;
+  const DF d;
+  const DI di;
+  for (int a = 0; a < 3; ++a) {
+    VD c[kHalves], b[kHalves], w[N][kHalves], dw[N][kHalves];
+    for (std::size_t h = 0; h < kHalves; ++h) {
+      VD wh[N], dwh[N];
+      const VD xd = hn::Load(dd, xs[a] + h * hn::Lanes(dd));
+      lane_weights<K>(dd, stencil_lanes<K>(dd, xd, g, a, c[h], b[h]), wh, dwh);
+      for (int k = 0; k < N; ++k) {
+        w[k][h] = wh[k];
+        dw[k][h] = hn::Mul(dwh[k], hn::Set(dd, g.inv_h[a]));
+      }
+    }
+    hn::Store(join_lanes(d, c), d, corner[a]);
+    hn::Store(join_lanes(di, b), di, base[a]);
+    for (int k = 0; k < N; ++k) {
+      hn::Store(join_lanes(d, w[k]), d, wl[a][k]);
+      hn::Store(join_lanes(d, dw[k]), d, dwl[a][k]);
+    }
+  }
+}
+
 template <Kernel K, Transfer T>
 void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
                 const Grid& g, Real dt, std::size_t b0, std::size_t end, StressBatch& sb,
@@ -397,34 +440,22 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
     for (int e = 0; e < 3; ++e)
       for (int a = 0; a < 3; ++a) hn::Store(c[3 * a + e], d, cm[e][a]);
   }
-  const hn::ScalableTag<double> dd;
-  const hn::Rebind<float, decltype(dd)> dh;
+  const DD dd;
   // x and v three axes at a time, as the gather loads x.
-  for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd)) {
-    hn::Vec<decltype(dd)> x[3], v[3];
-    hn::LoadInterleaved3(dd, bp.x[h].data(), x[0], x[1], x[2]);
-    hn::LoadInterleaved3(dd, bp.v[h].data(), v[0], v[1], v[2]);
-    for (int a = 0; a < 3; ++a) {
-      hn::Store(x[a], dd, xs[a] + h);
-      hn::Store(hn::DemoteTo(dh, v[a]), dh, vel[a] + h);
+  {
+    VD x[3][kHalves], v[3][kHalves];
+    for (std::size_t h = 0; h < kHalves; ++h) {
+      const std::size_t l = h * hn::Lanes(dd);
+      hn::LoadInterleaved3(dd, bp.x[l].data(), x[0][h], x[1][h], x[2][h]);
+      hn::LoadInterleaved3(dd, bp.v[l].data(), v[0][h], v[1][h], v[2][h]);
+      for (int a = 0; a < 3; ++a) hn::Store(x[a][h], dd, xs[a] + l);
     }
+    for (int a = 0; a < 3; ++a) hn::Store(join_lanes(d, v[a]), d, vel[a]);
   }
   if (bp.one_object) hn::Store(hn::Set(d, static_cast<float>(p.object_mass[bp.object])), d, pb.m);
   for (std::size_t l = 0; l < kLanes && !bp.one_object; ++l)
     pb.m[l] = static_cast<float>(p.mass(ord.order[b0 + std::min(l, count - 1)]));
-  // The stencil (base, 1D weights and derivatives) in double lanes, as make_stencil computes
-  // it, each value rounded to float once.
-  for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd))
-    for (int a = 0; a < 3; ++a) {
-      hn::Vec<decltype(dd)> w[N], dw[N];
-      lane_weights<K>(
-          dd, stencil_lanes<K>(dd, hn::Load(dd, xs[a] + h), g, a, corner[a] + h, pb.base[a] + h), w,
-          dw);
-      for (int k = 0; k < N; ++k) {
-        hn::Store(hn::DemoteTo(dh, w[k]), dh, wl[a][k] + h);
-        hn::Store(hn::DemoteTo(dh, hn::Mul(dw[k], hn::Set(dd, g.inv_h[a]))), dh, dwl[a][k] + h);
-      }
-    }
+  scatter_stencil<K>(g, xs, corner, pb.base, wl, dwl);
   // Momentum at node (i, j, k), with w = wx wy wz and grad w = (dwx wy wz, wx dwy wz, wx wy
   // dwz): w (m v + Q (x_base + (i, j, k) h - x_p)) + dt (-V0 tau) grad w
   //   = w (a + i c0 + j c1 + k c2) + s0 dwx wy wz + s1 wx dwy wz + s2 wx wy dwz,
@@ -644,14 +675,19 @@ HWY_INLINE void gather_stencil(const Grid& g, const Particles& p, std::size_t q0
     // A full batch: positions loaded three axes at a time into double lanes, the stencil
     // base, the distance to it and the corner offset computed there (as the scalar lines
     // below), each rounded to float once.
-    const hn::ScalableTag<double> dd;
-    const hn::Rebind<float, decltype(dd)> dh;
-    for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd)) {
-      hn::Vec<decltype(dd)> x[3];
-      hn::LoadInterleaved3(dd, p.x[q0 + h].data(), x[0], x[1], x[2]);
-      for (int a = 0; a < 3; ++a)
-        hn::Store(hn::DemoteTo(dh, stencil_lanes<K>(dd, x[a], g, a, corner[a] + h, base[a] + h)),
-                  dh, dist[a] + h);
+    const DD dd;
+    const DF d;
+    const DI di;
+    VD x[3][kHalves];
+    for (std::size_t h = 0; h < kHalves; ++h)
+      hn::LoadInterleaved3(dd, p.x[q0 + h * hn::Lanes(dd)].data(), x[0][h], x[1][h], x[2][h]);
+    for (int a = 0; a < 3; ++a) {
+      VD c[kHalves], b[kHalves], t[kHalves];
+      for (std::size_t h = 0; h < kHalves; ++h)
+        t[h] = stencil_lanes<K>(dd, x[a][h], g, a, c[h], b[h]);
+      hn::Store(join_lanes(d, t), d, dist[a]);
+      hn::Store(join_lanes(d, c), d, corner[a]);
+      hn::Store(join_lanes(di, b), di, base[a]);
     }
   } else {
     for (std::size_t l = 0; l < kLanes; ++l) {
