@@ -182,6 +182,7 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord, int reach)
       }
     }
     radix_sort(cells, ord);
+    ord.counts.clear();  // no cell offsets: scatters find a cell's run by its keys
   }
   const Vec3i top = hi + Vec3i::Constant(KernelTraits<K>::kNodes - 1 + reach);
   const Vec3i bottom = lo - Vec3i::Constant(reach);

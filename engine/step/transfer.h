@@ -27,7 +27,7 @@ struct ParticleOrder {
   std::vector<std::size_t> slab_start;  ///< order[slab_start[s] .. slab_start[s+1]) is slab s.
   std::vector<std::uint32_t> counts;    ///< The counting sort's cell offsets: counts[c] is
                                         ///< where cell c's run in `order` starts (cells + 1;
-                                        ///< dense boxes only, the radix sort sets none).
+                                        ///< dense boxes only: empty after the radix sort).
   std::vector<std::uint32_t> keys;      ///< Each particle's stencil base cell (particles_to_grid
                                         ///< sums a cell's particles before writing its nodes).
   Vec3i lo = Vec3i::Zero();             ///< The least stencil base: key 0's cell.

@@ -576,8 +576,17 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
   // zero) instead of writing all N^3 nodes per cell.
   Vec3i base = Vec3i::Zero();
   bool open = false;
+  // The cell of the run that starts at q. With the counting sort's offsets it is the next cell
+  // whose run is not empty (only the slab's first is looked up by key): a key looked up through
+  // `order` waits for memory, early in each cell's work.
+  const bool offsets = !ord.counts.empty();
+  std::uint32_t cell = 0;
   for (std::size_t q = begin; q < end;) {
-    const std::uint32_t cell = ord.keys[ord.order[q]];
+    if (offsets && q > begin)
+      for (++cell; ord.counts[cell + 1] == q;) ++cell;
+    else
+      cell = ord.keys[ord.order[q]];
+    assert(cell == ord.keys[ord.order[q]]);
     if (q >= pb.b1) fill_batch<K, T>(p, ord, fold, g, dt, q, end, sb, pb);
     // The window sits on the sort's cell, whose blocks are active, whatever the lanes computed
     // (they agree: the lanes round as the sort does, tests/transfers/test_simd.cpp).
@@ -604,8 +613,12 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
     }
     base = next;
     open = true;
+    // The end of the cell's run: its offset, else by scanning the keys.
     std::size_t cell_end = q + 1;
-    while (cell_end < end && ord.keys[ord.order[cell_end]] == cell) ++cell_end;
+    if (offsets)
+      cell_end = std::min<std::size_t>(end, ord.counts[cell + 1]);
+    else
+      while (cell_end < end && ord.keys[ord.order[cell_end]] == cell) ++cell_end;
     for (; q < cell_end; ++q) {
       if (q >= pb.b1) fill_batch<K, T>(p, ord, fold, g, dt, q, end, sb, pb);
       const std::size_t l = q - pb.b0;
