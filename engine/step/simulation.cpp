@@ -9,6 +9,7 @@
 #include <span>
 #include <utility>
 
+#include "engine/core/huge_pages.h"
 #include "engine/core/reduce.h"
 #include "engine/scene/mesh.h"
 #include "engine/scene/sampling.h"
@@ -586,6 +587,12 @@ void Simulation::substep(Real dt) {
     const auto t0 = clock::now();
     st.run(dt);
     st.seconds += std::chrono::duration<double>(clock::now() - t0).count();
+  }
+  // After the first substep, when the stages have sized their arrays, and again when the
+  // particles have been replaced or exchanged.
+  if (particles_.size() != huge_pages_for_) {
+    advise_heap_huge_pages();
+    huge_pages_for_ = particles_.size();
   }
   time_ += dt;
   ++substeps_;
