@@ -588,12 +588,9 @@ void Simulation::substep(Real dt) {
     st.run(dt);
     st.seconds += std::chrono::duration<double>(clock::now() - t0).count();
   }
-  // After the first substep, when the stages have sized their arrays, and again when the
-  // particles have been replaced or exchanged.
-  if (particles_.size() != huge_pages_for_) {
-    advise_heap_huge_pages();
-    huge_pages_for_ = particles_.size();
-  }
+  // Once, after the first substep, when the stages have sized their arrays.
+  if (!huge_pages_asked_) advise_heap_huge_pages();
+  huge_pages_asked_ = true;
   time_ += dt;
   ++substeps_;
   ++state_;

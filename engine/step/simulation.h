@@ -193,7 +193,7 @@ class Simulation {
   double bound_seconds_ = 0;
   Real time_ = 0;
   std::size_t substeps_ = 0;
-  std::size_t huge_pages_for_ = 0;  // the particle count advise_heap_huge_pages last ran for
+  bool huge_pages_asked_ = false;  // whether advise_heap_huge_pages has run
   AdvectStats last_advect_;
   // simulation.quadrature: domain only (empty otherwise): the per-node fits, each particle's
   // pressure and its gradient, det F before the F update, and the fits' scratch.

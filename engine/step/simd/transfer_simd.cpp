@@ -377,9 +377,6 @@ struct ScatterBatch {
   alignas(64) float m[kLanes];               ///< Particle mass, kg.
 };
 
-/// Fills `pb` with order[b0, min(b0 + kLanes, end)); `sb` holds their stresses after. One
-/// function: its lane arrays (weights, corners, velocities, C) live on its stack and in
-/// registers between the stencil and the momentum tables.
 /// The scatter's stencil of a batch (base, 1D weights and derivatives per cell) from the
 /// positions xs, in double lanes as make_stencil computes it, each value rounded to float once.
 template <Kernel K, int N = KernelTraits<K>::kNodes>
@@ -409,6 +406,9 @@ HWY_INLINE void scatter_stencil(const Grid& g, const double (*xs)[kLanes], float
   }
 }
 
+/// Fills `pb` with order[b0, min(b0 + kLanes, end)); `sb` holds their stresses after. One
+/// function: its lane arrays (weights, corners, velocities, C) live on its stack and in
+/// registers between the stencil and the momentum tables.
 template <Kernel K, Transfer T>
 void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const BatchModel> fold,
                 const Grid& g, Real dt, std::size_t b0, std::size_t end, StressBatch& sb,
