@@ -88,7 +88,8 @@ class Simulation {
   /// The stages of a substep, in order.
   const std::vector<Stage>& stages() const { return stages_; }
   /// Seconds spent so far in each stage, in order, after "cfl_bound" (the wave-speed bound of
-  /// the adaptive dt, timed_stable_dt()) when the scene sets cfl: every timed part of a substep.
+  /// the adaptive dt, timed_stable_dt()) when the scene sets cfl, and "huge_pages" (the heap
+  /// advised once, after the first substep): every timed part of a substep.
   std::vector<std::pair<std::string, double>> stage_seconds() const;
   /// The scene this simulation was built from.
   const SceneDesc& scene() const { return scene_; }
@@ -191,9 +192,9 @@ class Simulation {
   SplitGather split_gather_;      // the far particles' gather, run beside the contact stage
   std::vector<Stage> stages_;
   double bound_seconds_ = 0;
+  double huge_pages_seconds_ = -1;  // advise_heap_huge_pages' time; negative before it runs
   Real time_ = 0;
   std::size_t substeps_ = 0;
-  bool huge_pages_asked_ = false;  // whether advise_heap_huge_pages has run
   AdvectStats last_advect_;
   // simulation.quadrature: domain only (empty otherwise): the per-node fits, each particle's
   // pressure and its gradient, det F before the F update, and the fits' scratch.
