@@ -675,15 +675,15 @@ void gather_stencils(Real dt, const Particles& p, const Grid& g, ContactState& s
         w[t] = nodes[t] == kNoNode ? 0 : std::max(w[t], Real(0));
         sum += w[t];
       }
+      for (int t = 0; t < S; ++t) w[t] = sum > 0 ? w[t] / sum : 0;
       // It acts if touching, or closing its gap within the substep at the velocity
       // interpolated now (the solve's impulses only push particles away).
-      Vec3 u = Vec3::Zero();
-      for (int t = 0; t < S; ++t) {
-        w[t] = sum > 0 ? w[t] / sum : 0;
-        u += w[t] * velocity[t];
-      }
-      acts[c] = sum > 0 &&
-                (st.gap[c] <= 0 || (u - st.wall_velocity[c]).dot(st.normal[c]) < -st.gap[c] / dt);
+      const auto closing = [&] {
+        Vec3 u = Vec3::Zero();
+        for (int t = 0; t < S; ++t) u += w[t] * velocity[t];
+        return (u - st.wall_velocity[c]).dot(st.normal[c]) < -st.gap[c] / dt;
+      };
+      acts[c] = sum > 0 && (st.gap[c] <= 0 || closing());
     }
   }
   keep_acting_contacts(acts, storage_index.get(), g, st);
@@ -931,7 +931,11 @@ Real warm_start(Real dt, const ContactMemory& memory, const Members& members, Co
 
 /// `f` shortened to at most `cap` long.
 Vec3 within(Real cap, const Vec3& f) {
-  const Real t = f.norm();
+  // Well within the cap (a sticking node) it is f, without the square root's wait: below
+  // cap^2 (1 - 1e-15), rounded, |f| rounds to at most cap, so the answer is the same.
+  const Real s = f.squaredNorm();
+  if (s < cap * cap * (1 - Real(1e-15))) return f;
+  const Real t = std::sqrt(s);
   return t > cap ? (t > 0 ? Vec3(f * (cap / t)) : Vec3::Zero()) : f;
 }
 
