@@ -1408,14 +1408,13 @@ std::vector<char> contact_chunks(const std::vector<WallPlane>& planes,
   for (std::ptrdiff_t k = 0; k < count; ++k) {
     const std::size_t first = static_cast<std::size_t>(k) * chunk;
     const std::size_t last = std::min(n, first + chunk);
-    Vec3 lo = p.x[first], hi = lo;
-    bool finite = true;
+    Vec3 lo = p.x[first], hi = lo, probe = Vec3::Zero();
     for (std::size_t q = first; q < last; ++q) {
       lo = lo.cwiseMin(p.x[q]);
       hi = hi.cwiseMax(p.x[q]);
-      finite = finite && p.x[q].allFinite();
+      probe += p.x[q] - p.x[q];  // NaN from here on if a coordinate is not finite: no branch
     }
-    if (!finite) continue;
+    if (!(probe.array() == 0).all()) continue;
     // The nodes of the chunk's stencils, any kernel's, with a node to spare on each side.
     const Vec3 f = (lo - g.origin).cwiseProduct(g.inv_h), t = (hi - g.origin).cwiseProduct(g.inv_h);
     bool free = true;
