@@ -244,6 +244,61 @@ TEST_CASE("SIMD and scalar particle-to-grid agree for particles on cells' halves
   }
 }
 
+TEST_CASE("SIMD sort keys are the scalar sort's, on cells' halves and nodes too",
+          "[transfers][simd][sort]") {
+  if (!simd::target_name()) {
+    WARN("no SIMD target on this CPU");
+    return;
+  }
+  // The lattice of the test above, on grids shifted by j h / 8, plus a few random particles so
+  // that the count is not a multiple of any lane width: every key, whole lane sets in lanes
+  // and the rest by the caller, must be the stencil base's key the scalar sort computes.
+  const double h = 0.0125, start = -0.05;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(0, 12 * h);
+  for (int j = 0; j < 8; ++j) {
+    GridDesc gd;
+    gd.dims = Vec3i::Constant(24);
+    gd.buffer = 2;
+    gd.origin = Vec3::Constant(start - 3 * h - h / 4 - j * h / 8);
+    gd.max = gd.origin + Vec3::Constant(24 * h);
+    const Grid g(gd, false);
+    Particles p;
+    for (int a = 0; a < 6; ++a)
+      for (int b = 0; b < 6; ++b)
+        for (int c = 0; c < 6; ++c)
+          for (int s = 0; s < 8; ++s)
+            p.x.push_back(Vec3::Constant(start) + Vec3(a, b, c) * h +
+                          (Vec3(s / 4, (s / 2) % 2, s % 2) + Vec3::Constant(0.5)) / 2 * h);
+    for (int k = 0; k < 13; ++k)
+      p.x.push_back(Vec3::Constant(start) + Vec3(u(rng), u(rng), u(rng)));
+    const Vec3i lo(1, 2, 3), ext(30, 29, 28);
+    simd::for_each_target([&](const char* target) {
+      for (Kernel kernel : {Kernel::linear, Kernel::quadratic, Kernel::cubic}) {
+        INFO("grid origin at " << j << "/8 of a cell, target " << target << ", kernel "
+                               << static_cast<int>(kernel));
+        std::vector<std::uint32_t> keys(p.size(), ~0u);
+        const std::size_t first = 3;  // not on a lane set's start
+        const std::size_t done =
+            simd::cell_keys(p, kernel, g, lo, ext, first, p.size(), keys.data());
+        CHECK(done >= p.size() - first - 16);
+        std::size_t wrong = 0;
+        for (std::size_t q = first; q < first + done; ++q) {
+          Vec3i b;
+          dispatch_kernel(kernel,
+                          [&]<Kernel K>() { b = stencil_base<K>(p.x[q], g.origin, g.inv_h); });
+          const Vec3i k = b - lo;
+          wrong +=
+              keys[q] != static_cast<std::uint32_t>((k.x() * ext.y() + k.y()) * ext.z() + k.z());
+        }
+        CHECK(wrong == 0);
+        CHECK(keys[first - 1] == ~0u);  // nothing before `first` written
+        if (first + done < p.size()) CHECK(keys[first + done] == ~0u);  // nor after what it did
+      }
+    });
+  }
+}
+
 TEST_CASE("SIMD and scalar grid-to-particle give the same v, C and F to float rounding",
           "[transfers][simd]") {
   if (!simd::target_name()) {  // a CPU without SSE4: only the scalar path exists

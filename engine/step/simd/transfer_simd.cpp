@@ -31,6 +31,10 @@ void ScatterImpl(const Particles&, const ParticleOrder&, Transfer, Kernel, Real,
 void GatherImpl(const Grid&, Transfer, Kernel, Real, Particles&, AdvectStats*) {}
 void GatherRangeImpl(const Grid&, Transfer, Kernel, Real, Particles&, std::size_t, std::size_t,
                      AdvectStats*) {}
+std::size_t CellKeysImpl(const Particles&, Kernel, const Grid&, const Vec3i&, const Vec3i&,
+                         std::size_t, std::size_t, std::uint32_t*) {
+  return 0;
+}
 const char* TargetImpl() {
   return nullptr;
 }
@@ -1068,6 +1072,29 @@ void gather_all(const Grid& g, Real dt, Particles& p, AdvectStats* advect) {
   if (advect) *advect = {clamped, nonfinite, std::sqrt(v2)};
 }
 
+/// cell_keys with kernel K: the keys of whole lane sets of particles from `first`.
+template <Kernel K>
+std::size_t cell_keys(const Particles& p, const Grid& g, const Vec3i& lo, const Vec3i& ext,
+                      std::size_t first, std::size_t last, std::uint32_t* keys) {
+  const DD dd;
+  const hn::Rebind<std::int32_t, DD> di32;
+  const std::size_t L = hn::Lanes(dd), end = first + (last - first) / L * L;
+  for (std::size_t q = first; q < end; q += L) {
+    VD x[3], corner, base[3];
+    hn::LoadInterleaved3(dd, p.x[q].data(), x[0], x[1], x[2]);
+    for (int a = 0; a < 3; ++a) {
+      stencil_lanes<K>(dd, x[a], g, a, corner, base[a]);
+      base[a] = hn::Sub(base[a], hn::Set(dd, lo[a]));  // small integers: exact in double
+    }
+    // (k_x ext_y + k_y) ext_z + k_z, below 2^31 (cells <= 2 n): exact in double.
+    const VD key = hn::Add(
+        hn::Mul(hn::Add(hn::Mul(base[0], hn::Set(dd, ext.y())), base[1]), hn::Set(dd, ext.z())),
+        base[2]);
+    hn::StoreU(hn::DemoteTo(di32, key), di32, reinterpret_cast<std::int32_t*>(keys + q));
+  }
+  return end - first;
+}
+
 /// Calls f.template operator()<K, T>() for the transfers the SIMD path handles.
 template <class Fn>
 void dispatch(Transfer t, Kernel k, Fn&& f) {
@@ -1109,6 +1136,15 @@ void GatherRangeImpl(const Grid& g, Transfer t, Kernel k, Real dt, Particles& p,
            [&]<Kernel K, Transfer T>() { gather_range<K, T>(g, dt, p, first, last, advect); });
 }
 
+std::size_t CellKeysImpl(const Particles& p, Kernel kernel, const Grid& g, const Vec3i& lo,
+                         const Vec3i& ext, std::size_t first, std::size_t last,
+                         std::uint32_t* keys) {
+  std::size_t done = 0;
+  dispatch_kernel(kernel,
+                  [&]<Kernel K>() { done = cell_keys<K>(p, g, lo, ext, first, last, keys); });
+  return done;
+}
+
 const char* TargetImpl() {
   return hwy::TargetName(HWY_TARGET);
 }
@@ -1124,6 +1160,7 @@ namespace mpm::simd {
 HWY_EXPORT(ScatterImpl);
 HWY_EXPORT(GatherImpl);
 HWY_EXPORT(GatherRangeImpl);
+HWY_EXPORT(CellKeysImpl);
 HWY_EXPORT(TargetImpl);
 
 bool supports(Transfer transfer, Kernel, const Grid& grid) {
@@ -1158,6 +1195,11 @@ void prepare_gather(const Grid& grid) {
 void gather_range(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,
                   std::size_t first, std::size_t last, AdvectStats* advect) {
   HWY_DYNAMIC_DISPATCH(GatherRangeImpl)(grid, transfer, kernel, dt, p, first, last, advect);
+}
+
+std::size_t cell_keys(const Particles& p, Kernel kernel, const Grid& grid, const Vec3i& lo,
+                      const Vec3i& ext, std::size_t first, std::size_t last, std::uint32_t* keys) {
+  return HWY_DYNAMIC_DISPATCH(CellKeysImpl)(p, kernel, grid, lo, ext, first, last, keys);
 }
 
 const char* target_name() {

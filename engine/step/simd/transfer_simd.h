@@ -51,6 +51,13 @@ void gather_range(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, P
 /// What gather_range's `first` must be a multiple of: the widest target's lanes, times four.
 inline constexpr std::size_t kGatherAlign = 64;
 
+/// sort_by_cell's keys of particles [first, last): the cell of `kernel`'s stencil base less
+/// `lo`, in a box of `ext` cells, x slowest, in double lanes with make_stencil's operations
+/// (the same values). Writes whole lane sets from `first` and returns how many particles it
+/// did (0 without a SIMD target); the caller keys the rest.
+std::size_t cell_keys(const Particles& p, Kernel kernel, const Grid& grid, const Vec3i& lo,
+                      const Vec3i& ext, std::size_t first, std::size_t last, std::uint32_t* keys);
+
 /// Name of the instruction set the dispatch chose on this machine, e.g. "AVX3", or nullptr
 /// if it has none the SIMD path can use (then the scalar path runs).
 const char* target_name();
