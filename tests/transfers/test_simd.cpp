@@ -64,6 +64,36 @@ GridDesc grid16() {
   return d;
 }
 
+/// Lattice spacing and first corner of halves_lattice.
+constexpr double kLatticeH = 0.0125, kLatticeStart = -0.05;
+
+/// A 24^3 grid of cells kLatticeH shifted by j h / 8, 3 cells below halves_lattice: (x -
+/// origin) / h of the lattice lands on, or one rounding away from, a cell's half or a node,
+/// where the quadratic and linear/cubic stencil bases change.
+GridDesc shifted_grid(int j) {
+  const double h = kLatticeH;
+  GridDesc gd;
+  gd.dims = Vec3i::Constant(24);
+  gd.buffer = 2;
+  gd.origin = Vec3::Constant(kLatticeStart - 3 * h - h / 4 - j * h / 8);
+  gd.max = gd.origin + Vec3::Constant(24 * h);
+  return gd;
+}
+
+/// 8 particles per cell (h / 2 apart, as the sampler places them) in `cells`^3 cells.
+std::vector<Vec3> halves_lattice(int cells) {
+  std::vector<Vec3> x;
+  for (int a = 0; a < cells; ++a)
+    for (int b = 0; b < cells; ++b)
+      for (int c = 0; c < cells; ++c) {
+        const Vec3 corner = Vec3::Constant(kLatticeStart) + Vec3(a, b, c) * kLatticeH;
+        for (int s = 0; s < 8; ++s)
+          x.push_back(corner +
+                      (Vec3(s / 4, (s / 2) % 2, s % 2) + Vec3::Constant(0.5)) / 2 * kLatticeH);
+      }
+  return x;
+}
+
 /// Per stored node, the sum over particles of the absolute values of every term the scatter
 /// adds (mass: m w; momentum component e: |w a_e|, |w i c0_e|, ..., |grad w S|), computed from
 /// the scalar stencil: the scale the rounding error of a sum is bounded against.
@@ -214,29 +244,14 @@ TEST_CASE("SIMD and scalar particle-to-grid agree for particles on cells' halves
     WARN("no SIMD target on this CPU");
     return;
   }
-  // A regular lattice of 8 particles per cell (h / 2 apart, as the sampler places them) on a
-  // grid shifted by j h / 8: (x - origin) / h lands on, or one rounding away from, a cell's
-  // half or a node, where the quadratic and linear/cubic stencil bases change. The SIMD
+  // A regular lattice on grids shifted by j h / 8 (shifted_grid, halves_lattice). The SIMD
   // stencil must round as the scalar sort does: a fused multiply-add the source does not
   // write (GCC contracts one on FMA targets unless -ffp-contract=off) moved such a base by a
   // cell, and the scatter then wrote outside the blocks the sort activated (the grid at
   // offset 2/8 of scenes/validation/hydrostatic_water.yaml hung with MLS).
-  const double h = 0.0125, start = -0.05;
   for (int j = 0; j < 8; ++j) {
-    GridDesc gd;
-    gd.dims = Vec3i::Constant(24);
-    gd.buffer = 2;
-    gd.origin = Vec3::Constant(start - 3 * h - h / 4 - j * h / 8);  // 3 cells below the lattice
-    gd.max = gd.origin + Vec3::Constant(24 * h);
-    std::vector<Vec3> x;
-    for (int a = 0; a < 12; ++a)
-      for (int b = 0; b < 12; ++b)
-        for (int c = 0; c < 12; ++c) {
-          const Vec3 corner = Vec3::Constant(start) + Vec3(a, b, c) * h;
-          for (int s = 0; s < 8; ++s)
-            x.push_back(corner + (Vec3(s / 4, (s / 2) % 2, s % 2) + Vec3::Constant(0.5)) / 2 * h);
-        }
-    const Particles p = random_state(x, 3);
+    const GridDesc gd = shifted_grid(j);
+    const Particles p = random_state(halves_lattice(12), 3);
     INFO("grid origin at " << j << "/8 of a cell");
     for_each_case([&](bool cell_order, Kernel kernel, Transfer tr) {
       check_scatter_agrees(p, gd, cell_order, kernel, tr);
@@ -250,28 +265,18 @@ TEST_CASE("SIMD sort keys are the scalar sort's, on cells' halves and nodes too"
     WARN("no SIMD target on this CPU");
     return;
   }
-  // The lattice of the test above, on grids shifted by j h / 8, plus a few random particles so
-  // that the count is not a multiple of any lane width: every key, whole lane sets in lanes
-  // and the rest by the caller, must be the stencil base's key the scalar sort computes.
-  const double h = 0.0125, start = -0.05;
+  // The lattice on grids shifted by j h / 8 (shifted_grid, halves_lattice), plus a few random
+  // particles so that the count is not a multiple of any lane width: every key, whole lane
+  // sets in lanes and the rest by the caller, must be the stencil base's key the scalar sort
+  // computes.
   std::mt19937 rng(11);
-  std::uniform_real_distribution<double> u(0, 12 * h);
+  std::uniform_real_distribution<double> u(0, 12 * kLatticeH);
   for (int j = 0; j < 8; ++j) {
-    GridDesc gd;
-    gd.dims = Vec3i::Constant(24);
-    gd.buffer = 2;
-    gd.origin = Vec3::Constant(start - 3 * h - h / 4 - j * h / 8);
-    gd.max = gd.origin + Vec3::Constant(24 * h);
-    const Grid g(gd, false);
+    const Grid g(shifted_grid(j), false);
     Particles p;
-    for (int a = 0; a < 6; ++a)
-      for (int b = 0; b < 6; ++b)
-        for (int c = 0; c < 6; ++c)
-          for (int s = 0; s < 8; ++s)
-            p.x.push_back(Vec3::Constant(start) + Vec3(a, b, c) * h +
-                          (Vec3(s / 4, (s / 2) % 2, s % 2) + Vec3::Constant(0.5)) / 2 * h);
+    p.x = halves_lattice(6);
     for (int k = 0; k < 13; ++k)
-      p.x.push_back(Vec3::Constant(start) + Vec3(u(rng), u(rng), u(rng)));
+      p.x.push_back(Vec3::Constant(kLatticeStart) + Vec3(u(rng), u(rng), u(rng)));
     const Vec3i lo(1, 2, 3), ext(30, 29, 28);
     simd::for_each_target([&](const char* target) {
       for (Kernel kernel : {Kernel::linear, Kernel::quadratic, Kernel::cubic}) {
