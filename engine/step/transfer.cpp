@@ -59,10 +59,9 @@ void mark_blocks(const std::pair<Vec3i, Vec3i>& blocks, Grid& grid) {
 /// The stable counting sort by key (`keys_of(first, last)` sets ord.keys of particles
 /// [first, last), each below `cells`), for a box of at most two cells per particle: lists in
 /// `order` each cell's particles by index, cells in key order, and marks the blocks of every
-/// occupied cell's stencil. In parallel: each thread
-/// counts the cells of its own contiguous chunk of particles, and thread t's particles of cell
-/// c go after those of the threads before it, so `order` is the serial sort's for any thread
-/// count.
+/// occupied cell's stencil. In parallel: each thread keys and counts the cells of its own
+/// contiguous chunk of particles, and thread t's particles of cell c go after those of the
+/// threads before it, so `order` is the serial sort's for any thread count.
 template <Kernel K, class KeysOf>
 void counting_sort(std::size_t cells, KeysOf&& keys_of, int reach, ParticleOrder& ord, Grid& grid) {
   const std::size_t n = ord.order.size();
