@@ -53,8 +53,9 @@ inline constexpr std::size_t kGatherAlign = 64;
 
 /// sort_by_cell's keys of particles [first, last): the cell of `kernel`'s stencil base less
 /// `lo`, in a box of `ext` cells, x slowest, in double lanes with make_stencil's operations
-/// (the same values). Writes whole lane sets from `first` and returns how many particles it
-/// did (0 without a SIMD target); the caller keys the rest.
+/// (the same values). The box must hold every base and fewer than 2^31 cells. Writes whole
+/// lane sets from `first` and returns how many particles it did (0 without a SIMD target);
+/// the caller keys the rest.
 std::size_t cell_keys(const Particles& p, Kernel kernel, const Grid& grid, const Vec3i& lo,
                       const Vec3i& ext, std::size_t first, std::size_t last, std::uint32_t* keys);
 
