@@ -377,7 +377,7 @@ void Simulation::add_boundary_stages() {
             simd::supports(sd.transfer, kernel, grid_) &&
             gather_beside(contact, walls_, colliders_,
                           buffer_layers_behind_walls(walls_, time_ + dt, grid_), sd.transfer,
-                          kernel, time_, dt, grid_, particles_, split_gather_);
+                          kernel, time_, dt, grid_, particles_, split_gather_, &chunk_bounds_);
         if (!split) contact(nullptr);
         return;
       }
@@ -440,7 +440,7 @@ void Simulation::build_stages() {
   const bool domain_quadrature = s.quadrature == Quadrature::domain;
   add_stage("sort", [this, domain_quadrature](Real) {
     sort_particles(particles_, scene_.simulation.kernel, grid_, order_,
-                   domain_quadrature ? kDomainReach : 0);
+                   domain_quadrature ? kDomainReach : 0, &chunk_bounds_);
   });
   // With more than one rank: the previous rank's ghost blocks get storage here too.
   if (domain_) add_exchange("halo_blocks", [this](Real) { domain_->share_ghost_blocks(grid_); });
@@ -464,6 +464,7 @@ void Simulation::build_stages() {
       for (auto& m : materials_)  // an object with no particles here (other ranks) has none
         if (m.count > 0) ranges.push_back({m.first, m.count, m.material->state()});
       reorder_particles(ranges, scene_.simulation.transfer == Transfer::flip, order_, particles_);
+      chunk_bounds_.valid = false;  // the particles moved in memory
     });
   if (domain_) add_exchange("halo_sum", [this](Real) { domain_->add_ghost_sums(grid_); });
   add_stage("grid_update", [this](Real) { grid_update(grid_); });
@@ -483,11 +484,15 @@ void Simulation::build_stages() {
   } else {
     add_stage("grid_to_particles", [this](Real dt) {
       const SimulationDesc& sd = scene_.simulation;
+      // With more than one rank, migrate moves particles after the gather: no boxes.
+      ChunkBounds* bounds = domain_ ? nullptr : &chunk_bounds_;
       if (split_gather_.pending)
-        gather_rest(grid_, sd.transfer, sd.kernel, dt, particles_, split_gather_, &last_advect_);
+        gather_rest(grid_, sd.transfer, sd.kernel, dt, particles_, split_gather_, &last_advect_,
+                    bounds);
       else
         grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_,
-                          sd.simd ? TransferPath::simd : TransferPath::scalar, &last_advect_);
+                          sd.simd ? TransferPath::simd : TransferPath::scalar, &last_advect_,
+                          bounds);
       clamped_total_ += last_advect_.clamped;
     });
   }
@@ -584,6 +589,8 @@ std::vector<std::pair<std::string, double>> Simulation::stage_seconds() const {
 
 void Simulation::substep(Real dt) {
   using clock = std::chrono::steady_clock;
+  // Boxes from before a change of the particles outside the stages describe them no more.
+  if (chunk_bounds_.state != state_) chunk_bounds_.valid = false;
   for (Stage& st : stages_) {
     const auto t0 = clock::now();
     st.run(dt);
@@ -598,6 +605,7 @@ void Simulation::substep(Real dt) {
   time_ += dt;
   ++substeps_;
   ++state_;
+  chunk_bounds_.state = state_;
 }
 
 Real Simulation::max_speed() const {

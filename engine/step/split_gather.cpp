@@ -29,10 +29,11 @@ std::vector<std::uint32_t> chunks_marked(const SplitGather& split, char near) {
 }
 
 /// Gathers the chunks `chunks` on the team, each thread taking the next one as it comes free
-/// (this thread first runs `first`, if any), and adds the advection to split.advect.
+/// (this thread first runs `first`, if any), adds the advection to split.advect and writes
+/// the chunks' boxes to `bounds` (if given).
 void gather_chunks(const std::vector<std::uint32_t>& chunks, const std::function<void()>& first,
                    Transfer transfer, Kernel kernel, Real dt, const Grid& g, Particles& p,
-                   SplitGather& split) {
+                   SplitGather& split, ChunkBounds* bounds) {
   constexpr std::size_t C = simd::kGatherAlign, kLeast = 4;
   std::atomic<std::size_t> next{0};
   std::exception_ptr error;
@@ -59,7 +60,8 @@ void gather_chunks(const std::vector<std::uint32_t>& chunks, const std::function
       if (i >= chunks.size()) break;
       for (std::size_t j = i; j < std::min(chunks.size(), i + take); ++j) {
         const std::size_t q0 = chunks[j] * C;
-        simd::gather_range(g, transfer, kernel, dt, p, q0, std::min(p.size(), q0 + C), &mine);
+        simd::gather_range(g, transfer, kernel, dt, p, q0, std::min(p.size(), q0 + C), &mine,
+                           bounds);
       }
     }
 #pragma omp critical(mpm_split_gather)
@@ -73,11 +75,11 @@ void gather_chunks(const std::vector<std::uint32_t>& chunks, const std::function
 bool gather_beside(const ContactPass& contact, const std::vector<WallPlane>& planes,
                    const std::vector<Collider>& colliders, const BufferLayers& layers,
                    Transfer transfer, Kernel kernel, Real time, Real dt, const Grid& grid,
-                   Particles& particles, SplitGather& split) {
+                   Particles& particles, SplitGather& split, ChunkBounds* bounds) {
   constexpr std::size_t C = simd::kGatherAlign;
   if (omp_get_max_threads() < 2 || static_cast<long>(particles.size()) < kParallelMinItems)
     return false;
-  split.near = contact_chunks(planes, colliders, layers, kernel, time, particles, grid, C);
+  split.near = contact_chunks(planes, colliders, layers, kernel, time, particles, grid, C, bounds);
   const std::vector<std::uint32_t> far = chunks_marked(split, 0);
   if (2 * far.size() < split.near.size()) return false;
   split.advect = {};
@@ -85,17 +87,22 @@ bool gather_beside(const ContactPass& contact, const std::vector<WallPlane>& pla
   ++split.runs;
   const std::vector<IndexRange> search = marked_ranges(split.near, C, particles.size());
   simd::prepare_gather(grid);
+  if (bounds) {  // valid again once gather_rest has written the near chunks' boxes
+    bounds->valid = false;
+    bounds->resize(particles.size());
+  }
   gather_chunks(
-      far, [&] { contact(&search); }, transfer, kernel, dt, grid, particles, split);
+      far, [&] { contact(&search); }, transfer, kernel, dt, grid, particles, split, bounds);
   return true;
 }
 
 void gather_rest(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& particles,
-                 SplitGather& split, AdvectStats* advect) {
+                 SplitGather& split, AdvectStats* advect, ChunkBounds* bounds) {
   simd::prepare_gather(grid);  // the contact's and the domain boundary's nodes changed
-  gather_chunks(chunks_marked(split, 1), {}, transfer, kernel, dt, grid, particles, split);
+  gather_chunks(chunks_marked(split, 1), {}, transfer, kernel, dt, grid, particles, split, bounds);
   split.pending = false;
   if (advect) *advect = split.advect;
+  if (bounds) bounds->valid = true;
 }
 
 }  // namespace mpm

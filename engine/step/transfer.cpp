@@ -130,17 +130,22 @@ void radix_sort(std::size_t cells, ParticleOrder& ord) {
       [&](std::uint32_t i) { return keys[i]; }, ord.order, ord.scratch);
 }
 
-/// Sorts by the base cell of kernel K's stencil (dispatched once, not per particle), activates
-/// the blocks the stencils touch and places the slabs.
-template <Kernel K>
-void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord, int reach) {
-  const std::size_t n = p.size();
-  const Vec3 origin = grid.origin, inv_h = grid.inv_h;
-  // Bounds of the stencil bases: the active nodes are [lo, hi + N - 1]. The base is a
-  // non-decreasing function of each coordinate, so the bounds are the bases of the smallest
-  // and largest coordinates: a min/max pass with no floor per particle.
+/// The least and greatest coordinates of the particles (non-finite ones left out): from the
+/// chunks' boxes `bounds` where they hold the positions and all are finite, else a min/max
+/// pass over the positions.
+std::pair<Vec3, Vec3> position_bounds(const Particles& p, const ChunkBounds* bounds) {
   Real lx = std::numeric_limits<Real>::max(), ly = lx, lz = lx, hx = -lx, hy = hx, hz = hx;
-  const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(n);
+  if (bounds && bounds->hold(p.size())) {
+    Vec3 lo(lx, ly, lz), hi(hx, hy, hz);
+    bool finite = true;
+    for (std::size_t k = 0; k < bounds->lo.size(); ++k) {
+      finite = finite && bounds->lo[k].allFinite();
+      lo = lo.cwiseMin(bounds->lo[k]);
+      hi = hi.cwiseMax(bounds->hi[k]);
+    }
+    if (finite) return {lo, hi};
+  }
+  const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(p.size());
 #pragma omp parallel for schedule(static) reduction(min : lx, ly, lz) \
     reduction(max : hx, hy, hz) if (count >= kParallelMinItems)
   for (std::ptrdiff_t i = 0; i < count; ++i) {
@@ -148,8 +153,23 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord, int reach)
     lx = std::min(lx, x.x()), ly = std::min(ly, x.y()), lz = std::min(lz, x.z());
     hx = std::max(hx, x.x()), hy = std::max(hy, x.y()), hz = std::max(hz, x.z());
   }
-  const Vec3i lo = stencil_base<K>(Vec3(lx, ly, lz), origin, inv_h);
-  const Vec3i hi = stencil_base<K>(Vec3(hx, hy, hz), origin, inv_h);
+  return {Vec3(lx, ly, lz), Vec3(hx, hy, hz)};
+}
+
+/// Sorts by the base cell of kernel K's stencil (dispatched once, not per particle), activates
+/// the blocks the stencils touch and places the slabs.
+template <Kernel K>
+void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord, int reach,
+                  const ChunkBounds* bounds) {
+  const std::size_t n = p.size();
+  const Vec3 origin = grid.origin, inv_h = grid.inv_h;
+  // Bounds of the stencil bases: the active nodes are [lo, hi + N - 1]. The base is a
+  // non-decreasing function of each coordinate, so the bounds are the bases of the smallest
+  // and largest coordinates: no floor per particle.
+  const auto [least, most] = position_bounds(p, bounds);
+  const Vec3i lo = stencil_base<K>(least, origin, inv_h);
+  const Vec3i hi = stencil_base<K>(most, origin, inv_h);
+  const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(n);
   const Vec3i ext = hi - lo + Vec3i::Ones();
   ord.lo = lo, ord.ext = ext;
 
@@ -222,7 +242,8 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord, int reach)
 
 }  // namespace
 
-void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& ord, int reach) {
+void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& ord, int reach,
+                    const ChunkBounds* bounds) {
   ord.order.resize(p.size());
   if (p.size() == 0) {
     grid.release_blocks();
@@ -230,7 +251,7 @@ void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder
     ord.slab_start.assign(1, 0);
     return;
   }
-  dispatch_kernel(kernel, [&]<Kernel K>() { sort_by_cell<K>(p, grid, ord, reach); });
+  dispatch_kernel(kernel, [&]<Kernel K>() { sort_by_cell<K>(p, grid, ord, reach, bounds); });
 }
 
 namespace {
@@ -441,10 +462,11 @@ void gather_all(const Grid& g, Real flip_blend, Real dt, Particles& p) {
 
 }  // namespace
 
-void grid_to_particles(const Grid& g, Transfer transfer, Kernel kernel, Real flip_blend,
-                       Real dt, Particles& p, TransferPath path, AdvectStats* advect) {
+void grid_to_particles(const Grid& g, Transfer transfer, Kernel kernel, Real flip_blend, Real dt,
+                       Particles& p, TransferPath path, AdvectStats* advect, ChunkBounds* bounds) {
   if (path == TransferPath::simd && simd::supports(transfer, kernel, g))
-    return simd::gather(g, transfer, kernel, dt, p, advect);
+    return simd::gather(g, transfer, kernel, dt, p, advect, bounds);
+  if (bounds) bounds->valid = false;
   dispatch_kernel(kernel, [&]<Kernel K>() {
     switch (transfer) {
       case Transfer::mls:

@@ -2,18 +2,21 @@
 // conserves what APIC conserves.
 #include <omp.h>
 
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <numeric>
 #include <random>
 #include <vector>
 
+#include "engine/step/contact.h"
 #include "engine/step/grid.h"
 #include "engine/step/kernels.h"
 #include "engine/step/reorder.h"
 #include "engine/step/simd/stress_simd.h"
 #include "engine/step/simd/transfer_simd.h"
 #include "engine/step/transfer.h"
+#include "engine/step/walls.h"
 #include "materials/corotated.h"
 #include "materials/elastic_group.h"
 
@@ -374,6 +377,90 @@ TEST_CASE("SIMD transfers give the same results for 1 and 2 threads", "[transfer
     CHECK(pa.C == pb.C);
     CHECK(pa.F == pb.F);
   }
+}
+
+TEST_CASE(
+    "The SIMD gather's chunk boxes are the advected positions' own, and the sort and the "
+    "contact's chunks read them as the positions",
+    "[transfers][simd]") {
+  if (!simd::target_name()) {
+    WARN("no SIMD target on this CPU");
+    return;
+  }
+  constexpr std::size_t C = ChunkBounds::kChunk;
+  const Real dt = 2e-3;
+  simd::for_each_target([&](const char* target) {
+    INFO("target " << target);
+    Particles p0 = cloud(21);  // 3000: the last chunk and its last lane set partial
+    Grid g(grid16(), false);
+    ParticleOrder ord;
+    sort_particles(p0, Kernel::quadratic, g, ord);
+    reorder_as(ord, p0);  // in cell order: chunks are small boxes, some far from the walls
+    sort_particles(p0, Kernel::quadratic, g, ord);
+    particles_to_grid(p0, ord, Transfer::apic, Kernel::quadratic, dt, g, TransferPath::simd);
+    grid_update(g);
+    // The whole gather, and the same in chunk ranges (the split gather's calls), out of order.
+    Particles a = p0, b = p0;
+    ChunkBounds whole, parts;
+    AdvectStats advect;
+    grid_to_particles(g, Transfer::apic, Kernel::quadratic, 0, dt, a, TransferPath::simd, &advect,
+                      &whole);
+    simd::prepare_gather(g);
+    parts.resize(b.size());
+    const std::size_t chunks = (b.size() + C - 1) / C;
+    for (std::size_t k = chunks; k-- > 0;)
+      simd::gather_range(g, Transfer::apic, Kernel::quadratic, dt, b, k * C,
+                         std::min(b.size(), (k + 1) * C), &advect, &parts);
+    REQUIRE(whole.hold(a.size()));
+    REQUIRE(parts.lo.size() == chunks);
+    CHECK(a.x == b.x);
+    std::size_t moved = 0;
+    for (std::size_t k = 0; k < chunks; ++k) {
+      Vec3 lo = a.x[k * C], hi = lo;
+      for (std::size_t q = k * C; q < std::min(a.size(), (k + 1) * C); ++q) {
+        lo = lo.cwiseMin(a.x[q]);
+        hi = hi.cwiseMax(a.x[q]);
+        moved += a.x[q] != p0.x[q];
+      }
+      CHECK(whole.lo[k] == lo);
+      CHECK(whole.hi[k] == hi);
+      CHECK(parts.lo[k] == lo);
+      CHECK(parts.hi[k] == hi);
+    }
+    CHECK(moved == a.size());  // the boxes are of the advected positions
+    // Without advection nothing is known.
+    Particles c = p0;
+    ChunkBounds none = whole;
+    grid_to_particles(g, Transfer::apic, Kernel::quadratic, 0, dt, c, TransferPath::simd, nullptr,
+                      &none);
+    CHECK_FALSE(none.hold(c.size()));
+    // The sort from the boxes is the sort from the positions.
+    for (Kernel kernel : {Kernel::linear, Kernel::quadratic, Kernel::cubic}) {
+      Grid ga(grid16(), false), gb(grid16(), false);
+      ParticleOrder from_boxes, from_positions;
+      sort_particles(a, kernel, ga, from_boxes, 0, &whole);
+      sort_particles(a, kernel, gb, from_positions);
+      CHECK(from_boxes.lo == from_positions.lo);
+      CHECK(from_boxes.ext == from_positions.ext);
+      CHECK(from_boxes.order == from_positions.order);
+      CHECK(from_boxes.slab_start == from_positions.slab_start);
+      CHECK(ga.slot == gb.slot);
+    }
+    // The contact's chunks, for a floor under the cloud's lower part and a slanted wall beside
+    // it (no domain boundary near).
+    std::vector<WallPlane> planes;
+    for (const Vec3& n : {Vec3(0, 1, 0), Vec3(0.8, 0.6, 0)})
+      planes.push_back(
+          {Vec3::Constant(0.5) - 0.18 * n, n, Boundary::separate, 0, Vec3::Zero(), {}});
+    const BufferLayers layers{Vec3i::Constant(-100), Vec3i::Constant(100)};
+    const std::vector<char> near_boxes =
+        contact_chunks(planes, {}, layers, Kernel::quadratic, 0, a, g, C, &whole);
+    const std::vector<char> near_positions =
+        contact_chunks(planes, {}, layers, Kernel::quadratic, 0, a, g, C);
+    CHECK(near_boxes == near_positions);
+    CHECK(std::count(near_positions.begin(), near_positions.end(), 0) > 0);
+    CHECK(std::count(near_positions.begin(), near_positions.end(), 1) > 0);
+  });
 }
 
 TEST_CASE("MLS keeps mass, momentum and angular momentum through a transfer like APIC",
