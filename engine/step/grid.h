@@ -100,8 +100,11 @@ struct Grid {
                          : start + xy + off[2][k];
           }
         } else {
-          const std::size_t row[2] = {f[0] + xy, f[1] + xy};
-          for (int k = 0; k < N; ++k) out[c++] = row[blk[2][k]] + off[2][k];
+          // The second z block's start, at an index known only now: the compiler then loads
+          // the two starts one by one, as they were stored (a load of both at once waits
+          // until the stores reach the cache: it cannot take them from the store queue).
+          const std::size_t row0 = f[0] + xy, row1 = f[blk[2][N - 1]] + xy;
+          for (int k = 0; k < N; ++k) out[c++] = (blk[2][k] ? row1 : row0) + off[2][k];
         }
       }
   }

@@ -484,15 +484,11 @@ void Simulation::build_stages() {
   } else {
     add_stage("grid_to_particles", [this](Real dt) {
       const SimulationDesc& sd = scene_.simulation;
-      // With more than one rank, migrate moves particles after the gather: no boxes.
-      ChunkBounds* bounds = domain_ ? nullptr : &chunk_bounds_;
       if (split_gather_.pending)
-        gather_rest(grid_, sd.transfer, sd.kernel, dt, particles_, split_gather_, &last_advect_,
-                    bounds);
+        gather_rest(grid_, sd.transfer, sd.kernel, dt, particles_, split_gather_, &last_advect_);
       else
         grid_to_particles(grid_, sd.transfer, sd.kernel, sd.flip_blend, dt, particles_,
-                          sd.simd ? TransferPath::simd : TransferPath::scalar, &last_advect_,
-                          bounds);
+                          sd.simd ? TransferPath::simd : TransferPath::scalar, &last_advect_);
       clamped_total_ += last_advect_.clamped;
     });
   }
@@ -589,8 +585,6 @@ std::vector<std::pair<std::string, double>> Simulation::stage_seconds() const {
 
 void Simulation::substep(Real dt) {
   using clock = std::chrono::steady_clock;
-  // Boxes from before a change of the particles outside the stages describe them no more.
-  if (chunk_bounds_.state != state_) chunk_bounds_.valid = false;
   for (Stage& st : stages_) {
     const auto t0 = clock::now();
     st.run(dt);
@@ -605,7 +599,6 @@ void Simulation::substep(Real dt) {
   time_ += dt;
   ++substeps_;
   ++state_;
-  chunk_bounds_.state = state_;
 }
 
 Real Simulation::max_speed() const {

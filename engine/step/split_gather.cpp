@@ -29,11 +29,10 @@ std::vector<std::uint32_t> chunks_marked(const SplitGather& split, char near) {
 }
 
 /// Gathers the chunks `chunks` on the team, each thread taking the next one as it comes free
-/// (this thread first runs `first`, if any), adds the advection to split.advect and writes
-/// the chunks' boxes to `bounds` (if given).
+/// (this thread first runs `first`, if any), and adds the advection to split.advect.
 void gather_chunks(const std::vector<std::uint32_t>& chunks, const std::function<void()>& first,
                    Transfer transfer, Kernel kernel, Real dt, const Grid& g, Particles& p,
-                   SplitGather& split, ChunkBounds* bounds) {
+                   SplitGather& split) {
   constexpr std::size_t C = simd::kGatherAlign, kLeast = 4;
   std::atomic<std::size_t> next{0};
   std::exception_ptr error;
@@ -60,8 +59,7 @@ void gather_chunks(const std::vector<std::uint32_t>& chunks, const std::function
       if (i >= chunks.size()) break;
       for (std::size_t j = i; j < std::min(chunks.size(), i + take); ++j) {
         const std::size_t q0 = chunks[j] * C;
-        simd::gather_range(g, transfer, kernel, dt, p, q0, std::min(p.size(), q0 + C), &mine,
-                           bounds);
+        simd::gather_range(g, transfer, kernel, dt, p, q0, std::min(p.size(), q0 + C), &mine);
       }
     }
 #pragma omp critical(mpm_split_gather)
@@ -75,7 +73,7 @@ void gather_chunks(const std::vector<std::uint32_t>& chunks, const std::function
 bool gather_beside(const ContactPass& contact, const std::vector<WallPlane>& planes,
                    const std::vector<Collider>& colliders, const BufferLayers& layers,
                    Transfer transfer, Kernel kernel, Real time, Real dt, const Grid& grid,
-                   Particles& particles, SplitGather& split, ChunkBounds* bounds) {
+                   Particles& particles, SplitGather& split, const ChunkBounds* bounds) {
   constexpr std::size_t C = simd::kGatherAlign;
   if (omp_get_max_threads() < 2 || static_cast<long>(particles.size()) < kParallelMinItems)
     return false;
@@ -87,22 +85,17 @@ bool gather_beside(const ContactPass& contact, const std::vector<WallPlane>& pla
   ++split.runs;
   const std::vector<IndexRange> search = marked_ranges(split.near, C, particles.size());
   simd::prepare_gather(grid);
-  if (bounds) {  // valid again once gather_rest has written the near chunks' boxes
-    bounds->valid = false;
-    bounds->resize(particles.size());
-  }
   gather_chunks(
-      far, [&] { contact(&search); }, transfer, kernel, dt, grid, particles, split, bounds);
+      far, [&] { contact(&search); }, transfer, kernel, dt, grid, particles, split);
   return true;
 }
 
 void gather_rest(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& particles,
-                 SplitGather& split, AdvectStats* advect, ChunkBounds* bounds) {
+                 SplitGather& split, AdvectStats* advect) {
   simd::prepare_gather(grid);  // the contact's and the domain boundary's nodes changed
-  gather_chunks(chunks_marked(split, 1), {}, transfer, kernel, dt, grid, particles, split, bounds);
+  gather_chunks(chunks_marked(split, 1), {}, transfer, kernel, dt, grid, particles, split);
   split.pending = false;
   if (advect) *advect = split.advect;
-  if (bounds) bounds->valid = true;
 }
 
 }  // namespace mpm

@@ -51,17 +51,15 @@ using ContactPass = std::function<void(const std::vector<IndexRange>* search)>;
 /// Returns false, having run nothing, on one thread or where fewer than half the chunks are
 /// far (most particles near a wall: the contact then gains more from the team's threads than
 /// the far gather does beside it); the caller then runs the plain contact and gather.
-/// `bounds`, if given: the chunks' boxes, if they hold the positions now; the far chunks' new
-/// boxes are written there (valid once gather_rest has written the others).
+/// `bounds`: the chunks' boxes (contact_chunks), if the caller has them.
 bool gather_beside(const ContactPass& contact, const std::vector<WallPlane>& planes,
                    const std::vector<Collider>& colliders, const BufferLayers& layers,
                    Transfer transfer, Kernel kernel, Real time, Real dt, const Grid& grid,
-                   Particles& particles, SplitGather& split, ChunkBounds* bounds = nullptr);
+                   Particles& particles, SplitGather& split, const ChunkBounds* bounds = nullptr);
 
 /// Gathers and advects the chunks gather_beside left (in parallel, once the contact and the
-/// domain boundary have set their nodes) and writes the whole advection's counts to `advect`
-/// and, with `bounds` (gather_beside's), their boxes there.
+/// domain boundary have set their nodes) and writes the whole advection's counts to `advect`.
 void gather_rest(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& particles,
-                 SplitGather& split, AdvectStats* advect, ChunkBounds* bounds = nullptr);
+                 SplitGather& split, AdvectStats* advect);
 
 }  // namespace mpm

@@ -130,28 +130,37 @@ void radix_sort(std::size_t cells, ParticleOrder& ord) {
       [&](std::uint32_t i) { return keys[i]; }, ord.order, ord.scratch);
 }
 
-/// The least and greatest coordinates of the particles (non-finite ones left out): from the
-/// chunks' boxes `bounds` where they hold the positions and all are finite, else a min/max
-/// pass over the positions.
-std::pair<Vec3, Vec3> position_bounds(const Particles& p, const ChunkBounds* bounds) {
-  Real lx = std::numeric_limits<Real>::max(), ly = lx, lz = lx, hx = -lx, hy = hx, hz = hx;
-  if (bounds && bounds->hold(p.size())) {
-    Vec3 lo(lx, ly, lz), hi(hx, hy, hz);
-    bool finite = true;
-    for (std::size_t k = 0; k < bounds->lo.size(); ++k) {
-      finite = finite && bounds->lo[k].allFinite();
-      lo = lo.cwiseMin(bounds->lo[k]);
-      hi = hi.cwiseMax(bounds->hi[k]);
-    }
-    if (finite) return {lo, hi};
+/// The least and greatest coordinates of the particles (non-finite ones left out), by a
+/// min/max pass over the positions; with `bounds`, each chunk's box is written there too.
+std::pair<Vec3, Vec3> position_bounds(const Particles& p, ChunkBounds* bounds) {
+  constexpr std::size_t C = ChunkBounds::kChunk;
+  const std::size_t n = p.size();
+  const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + C - 1) / C);
+  if (bounds) {
+    bounds->lo.resize(static_cast<std::size_t>(chunks));
+    bounds->hi.resize(static_cast<std::size_t>(chunks));
+    bounds->valid = true;
   }
-  const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(p.size());
-#pragma omp parallel for schedule(static) reduction(min : lx, ly, lz) \
-    reduction(max : hx, hy, hz) if (count >= kParallelMinItems)
-  for (std::ptrdiff_t i = 0; i < count; ++i) {
-    const Vec3& x = p.x[i];
-    lx = std::min(lx, x.x()), ly = std::min(ly, x.y()), lz = std::min(lz, x.z());
-    hx = std::max(hx, x.x()), hy = std::max(hy, x.y()), hz = std::max(hz, x.z());
+  Real lx = std::numeric_limits<Real>::max(), ly = lx, lz = lx, hx = -lx, hy = hx, hz = hx;
+#pragma omp parallel for schedule(static) reduction(min           \
+                                                    : lx, ly, lz) \
+    reduction(max                                                 \
+              : hx, hy, hz) if (static_cast <long>(n) >= kParallelMinItems)
+  for (std::ptrdiff_t k = 0; k < chunks; ++k) {
+    const std::size_t first = static_cast<std::size_t>(k) * C, last = std::min(n, first + C);
+    Real cx = std::numeric_limits<Real>::max(), cy = cx, cz = cx, dx = -cx, dy = dx, dz = dx;
+    bool finite = true;  // no branch per coordinate: x - x is 0 unless x is not finite
+    for (std::size_t i = first; i < last; ++i) {
+      const Vec3& x = p.x[i];
+      cx = std::min(cx, x.x()), cy = std::min(cy, x.y()), cz = std::min(cz, x.z());
+      dx = std::max(dx, x.x()), dy = std::max(dy, x.y()), dz = std::max(dz, x.z());
+      finite &= (x.x() - x.x() == 0) & (x.y() - x.y() == 0) & (x.z() - x.z() == 0);
+    }
+    lx = std::min(lx, cx), ly = std::min(ly, cy), lz = std::min(lz, cz);
+    hx = std::max(hx, dx), hy = std::max(hy, dy), hz = std::max(hz, dz);
+    if (!bounds) continue;
+    bounds->lo[k] = finite ? Vec3(cx, cy, cz) : Vec3::Constant(std::nan(""));
+    bounds->hi[k] = Vec3(dx, dy, dz);
   }
   return {Vec3(lx, ly, lz), Vec3(hx, hy, hz)};
 }
@@ -160,7 +169,7 @@ std::pair<Vec3, Vec3> position_bounds(const Particles& p, const ChunkBounds* bou
 /// the blocks the stencils touch and places the slabs.
 template <Kernel K>
 void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord, int reach,
-                  const ChunkBounds* bounds) {
+                  ChunkBounds* bounds) {
   const std::size_t n = p.size();
   const Vec3 origin = grid.origin, inv_h = grid.inv_h;
   // Bounds of the stencil bases: the active nodes are [lo, hi + N - 1]. The base is a
@@ -243,7 +252,7 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord, int reach,
 }  // namespace
 
 void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& ord, int reach,
-                    const ChunkBounds* bounds) {
+                    ChunkBounds* bounds) {
   ord.order.resize(p.size());
   if (p.size() == 0) {
     grid.release_blocks();
@@ -463,10 +472,9 @@ void gather_all(const Grid& g, Real flip_blend, Real dt, Particles& p) {
 }  // namespace
 
 void grid_to_particles(const Grid& g, Transfer transfer, Kernel kernel, Real flip_blend, Real dt,
-                       Particles& p, TransferPath path, AdvectStats* advect, ChunkBounds* bounds) {
+                       Particles& p, TransferPath path, AdvectStats* advect) {
   if (path == TransferPath::simd && simd::supports(transfer, kernel, g))
-    return simd::gather(g, transfer, kernel, dt, p, advect, bounds);
-  if (bounds) bounds->valid = false;
+    return simd::gather(g, transfer, kernel, dt, p, advect);
   dispatch_kernel(kernel, [&]<Kernel K>() {
     switch (transfer) {
       case Transfer::mls:

@@ -44,21 +44,14 @@ struct ParticleOrder {
 };
 
 /// Where the particles lie, chunk by chunk: the box of each run of kChunk consecutive
-/// particles as the SIMD gather's advection stored them. The next sort takes its bounds, and
-/// the contact its far chunks (contact_chunks), from these boxes instead of reading every
-/// position again.
+/// particles, as the sort found them in its pass over the positions. The contact stage takes
+/// its far chunks (contact_chunks) from these boxes instead of reading every position again.
 struct ChunkBounds {
   static constexpr std::size_t kChunk = 64;  ///< Particles per chunk (the last one fewer).
-  std::vector<Vec3> lo;   ///< Each chunk's least coordinates; NaN where one is not finite.
-  std::vector<Vec3> hi;   ///< Each chunk's greatest coordinates.
-  bool valid = false;     ///< The boxes are those of the positions now (their owner says).
-  std::size_t state = 0;  ///< The owner's state they were found in (Simulation).
+  std::vector<Vec3> lo;  ///< Each chunk's least coordinates; NaN where one is not finite.
+  std::vector<Vec3> hi;  ///< Each chunk's greatest coordinates.
+  bool valid = false;    ///< The boxes are those of the positions now (their owner says).
 
-  /// Sized for `n` particles (the boxes to be written).
-  void resize(std::size_t n) {
-    lo.resize((n + kChunk - 1) / kChunk);
-    hi.resize(lo.size());
-  }
   /// Whether they are the boxes of the positions of `n` particles now.
   bool hold(std::size_t n) const { return valid && lo.size() == (n + kChunk - 1) / kChunk; }
 };
@@ -98,9 +91,9 @@ void for_each_slab(const ParticleOrder& order, Fn&& f, long parallel_from = kPar
 /// stencils touch (Grid::activate_blocks). Slabs are wide enough for the kernel (2 cells, 3
 /// for cubic). A scatter that reaches `reach` nodes beyond the stencil on each side (the
 /// particle domains', domain_quadrature.h) gets those nodes' blocks and wider slabs.
-/// `bounds`, if they hold the particles' positions now, spare the pass that finds their box.
+/// With `bounds`, the boxes of the chunks of particles are written there (and marked valid).
 void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& order,
-                    int reach = 0, const ChunkBounds* bounds = nullptr);
+                    int reach = 0, ChunkBounds* bounds = nullptr);
 
 /// Zeroes every stored node's mass and momentum (and FLIP's force) before a scatter.
 void clear_node_sums(Grid& grid);
@@ -143,11 +136,9 @@ struct AdvectStats {
 /// With `advect`, the particles are also advected with their new velocities (as
 /// advect_particles, which then must not run) and what advection saw is written there: on the
 /// SIMD path in the same pass over the particles, so x and v are read from memory once.
-/// `bounds`, if given, get the advected positions' boxes there (and are marked valid), or are
-/// marked invalid.
 void grid_to_particles(const Grid& grid, Transfer transfer, Kernel kernel, Real flip_blend, Real dt,
                        Particles& p, TransferPath path = TransferPath::scalar,
-                       AdvectStats* advect = nullptr, ChunkBounds* bounds = nullptr);
+                       AdvectStats* advect = nullptr);
 
 /// The box advection keeps particles in: the grid interior, outside the buffer cells.
 struct AdvectBox {

@@ -28,9 +28,9 @@ namespace HWY_NAMESPACE {
 // One lane cannot hold a stencil's 1D weights: on a CPU without SSE4 the scalar path runs.
 void ScatterImpl(const Particles&, const ParticleOrder&, Transfer, Kernel, Real,
                  std::span<const BatchModel>, Grid&) {}
-void GatherImpl(const Grid&, Transfer, Kernel, Real, Particles&, AdvectStats*, ChunkBounds*) {}
+void GatherImpl(const Grid&, Transfer, Kernel, Real, Particles&, AdvectStats*) {}
 void GatherRangeImpl(const Grid&, Transfer, Kernel, Real, Particles&, std::size_t, std::size_t,
-                     AdvectStats*, ChunkBounds*) {}
+                     AdvectStats*) {}
 std::size_t CellKeysImpl(const Particles&, Kernel, const Grid&, const Vec3i&, const Vec3i&,
                          std::size_t, std::size_t, std::uint32_t*) {
   return 0;
@@ -48,7 +48,6 @@ using VF = hn::Vec<DF>;
 using VI = hn::Vec<DI>;
 constexpr std::size_t kLanes = HWY_LANES(float);  ///< Lanes of a full vector on this target.
 static_assert(kGatherAlign % kLanes == 0, "gather_range's ranges start on a lane set");
-static_assert(ChunkBounds::kChunk % kLanes == 0, "a chunk is whole lane sets");
 
 /// Rounds a grid value to float storage if the grid stores float (grid.precision: float).
 inline Real store_node(Real v, bool float_nodes) {
@@ -988,48 +987,23 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   store_gathered<kAffine>(out, q0, count, p);
 }
 
-/// The box of the positions advect_batch stores over one chunk, and whether all are finite.
-struct StoredBox {
-  Vec3 lo = Vec3::Constant(std::numeric_limits<Real>::infinity());  ///< Least coordinates.
-  Vec3 hi = -lo;                                                    ///< Greatest coordinates.
-  bool finite = true;  ///< No coordinate was NaN or infinite (else lo and hi mean nothing).
-
-  /// Chunk k of `bounds` becomes this box (lo NaN where a coordinate was not finite).
-  void write(ChunkBounds& bounds, std::size_t k) const {
-    bounds.lo[k] = finite ? lo : Vec3::Constant(std::numeric_limits<Real>::quiet_NaN());
-    bounds.hi[k] = hi;
-  }
-};
-
 /// Advects particles [q0, q0 + count) with their new velocities: advect_particle, in double
 /// lanes for a full batch, where x + dt v is one fused multiply-add on targets that have one
 /// (AVX2, AVX-512), so a position may differ from advect_particle's in its last bit. A full
 /// batch takes v from gather_batch's float rows `v` (widened to double, as store_gathered
-/// widens them), not from the particles' v just stored. `where`, if given, is widened to the
-/// stored positions.
+/// widens them), not from the particles' v just stored.
 void advect_batch(const AdvectBox& box, Real dt, std::size_t q0, std::size_t count,
                   const float (*v_rows)[kLanes], Particles& p, std::size_t& clamped,
-                  std::size_t& nonfinite, Real& v2, StoredBox* where) {
+                  std::size_t& nonfinite, Real& v2) {
   if (count < kLanes) {
-    for (std::size_t q = q0; q < q0 + count; ++q) {
+    for (std::size_t q = q0; q < q0 + count; ++q)
       advect_particle(box, dt, p.v[q], p.x[q], clamped, nonfinite, v2);
-      if (!where) continue;
-      where->lo = where->lo.cwiseMin(p.x[q]);
-      where->hi = where->hi.cwiseMax(p.x[q]);
-      where->finite = where->finite && p.x[q].allFinite();
-    }
     return;
   }
   const hn::ScalableTag<double> dd;
   using VD = hn::Vec<decltype(dd)>;
   const VD vdt = hn::Set(dd, dt);
   VD top = hn::Set(dd, v2);
-  VD lo[3], hi[3];
-  auto all_finite = hn::IsFinite(hn::Zero(dd));
-  for (int a = 0; a < 3; ++a) {
-    lo[a] = hn::Set(dd, where ? where->lo[a] : 0);
-    hi[a] = hn::Set(dd, where ? where->hi[a] : 0);
-  }
   for (std::size_t h = 0; h < kLanes; h += hn::Lanes(dd)) {
     const hn::Rebind<float, decltype(dd)> dh;
     VD x[3], v[3];
@@ -1048,70 +1022,27 @@ void advect_batch(const AdvectBox& box, Real dt, std::size_t q0, std::size_t cou
     }
     nonfinite += hn::CountTrue(dd, hn::Not(finite));
     clamped += hn::CountTrue(dd, hn::And(finite, moved_out));
-    VD stored[3];
-    for (int a = 0; a < 3; ++a) {
-      stored[a] = hn::IfThenElse(finite, c[a], x[a]);
-      if (!where) continue;
-      lo[a] = hn::Min(lo[a], stored[a]);
-      hi[a] = hn::Max(hi[a], stored[a]);
-      all_finite = hn::And(all_finite, hn::IsFinite(stored[a]));
-    }
-    hn::StoreInterleaved3(stored[0], stored[1], stored[2], dd, p.x[q0 + h].data());
+    hn::StoreInterleaved3(hn::IfThenElse(finite, c[0], x[0]), hn::IfThenElse(finite, c[1], x[1]),
+                          hn::IfThenElse(finite, c[2], x[2]), dd, p.x[q0 + h].data());
   }
   v2 = hn::GetLane(hn::MaxOfLanes(dd, top));
-  if (!where) return;
-  for (int a = 0; a < 3; ++a) {
-    where->lo[a] = hn::GetLane(hn::MinOfLanes(dd, lo[a]));
-    where->hi[a] = hn::GetLane(hn::MaxOfLanes(dd, hi[a]));
-  }
-  where->finite = where->finite && hn::AllTrue(dd, all_finite);
-}
-
-/// Gathers (and with `advect` advects) particles [first, last) in lane sets from `first`,
-/// adding to the advection's counts and raising v2 to its largest squared speed; `where`, if
-/// given, is widened to the advected positions.
-template <Kernel K, Transfer T>
-void gather_lane_sets(const Grid& g, Real dt, Particles& p, std::size_t first, std::size_t last,
-                      bool advect, std::size_t& clamped, std::size_t& nonfinite, Real& v2,
-                      StoredBox* where) {
-  const AdvectBox box(g);
-  for (std::size_t q0 = first; q0 < last; q0 += kLanes) {
-    const std::size_t count = std::min(kLanes, last - q0);
-    alignas(64) float v[3][kLanes];
-    gather_batch<K, T>(g, dt, q0, count, p, v);
-    if (advect) advect_batch(box, dt, q0, count, v, p, clamped, nonfinite, v2, where);
-  }
-}
-
-/// Gathers (and with `advect` advects) the particles of chunk k of `bounds`' chunks within
-/// [first, last) on the calling thread, adding to the advection's counts; with `advect` and
-/// `bounds`, the chunk's box is written there.
-template <Kernel K, Transfer T>
-void gather_chunk(const Grid& g, Real dt, Particles& p, std::size_t k, std::size_t first,
-                  std::size_t last, bool advect, std::size_t& clamped, std::size_t& nonfinite,
-                  Real& v2, ChunkBounds* bounds) {
-  constexpr std::size_t C = ChunkBounds::kChunk;
-  StoredBox box;
-  StoredBox* where = advect && bounds ? &box : nullptr;
-  gather_lane_sets<K, T>(g, dt, p, std::max(first, k * C), std::min(last, (k + 1) * C), advect,
-                         clamped, nonfinite, v2, where);
-  if (where) box.write(*bounds, k);
 }
 
 /// Gathers (and with `advect` advects) particles [first, last) on the calling thread, in the
 /// lane sets gather_all makes of them (`first` a multiple of kLanes), adding the advection's
-/// counts and speed to `advect`; with `advect` and `bounds`, the boxes of the chunks whose
-/// particles all lie in [first, last) are written there.
+/// counts and speed to `advect`.
 template <Kernel K, Transfer T>
 void gather_range(const Grid& g, Real dt, Particles& p, std::size_t first, std::size_t last,
-                  AdvectStats* advect, ChunkBounds* bounds) {
-  constexpr std::size_t C = ChunkBounds::kChunk;
+                  AdvectStats* advect) {
+  const AdvectBox box(g);
   std::size_t clamped = 0, nonfinite = 0;
   Real v2 = 0;
-  for (std::size_t k = first / C; k * C < last; ++k)
-    gather_chunk<K, T>(
-        g, dt, p, k, first, last, advect != nullptr, clamped, nonfinite, v2,
-        first <= k * C && std::min((k + 1) * C, p.size()) <= last ? bounds : nullptr);
+  for (std::size_t q0 = first; q0 < last; q0 += kLanes) {
+    const std::size_t count = std::min(kLanes, last - q0);
+    alignas(64) float v[3][kLanes];
+    gather_batch<K, T>(g, dt, q0, count, p, v);
+    if (advect) advect_batch(box, dt, q0, count, v, p, clamped, nonfinite, v2);
+  }
   if (!advect) return;
   advect->clamped += clamped;
   advect->nonfinite += nonfinite;
@@ -1119,25 +1050,25 @@ void gather_range(const Grid& g, Real dt, Particles& p, std::size_t first, std::
 }
 
 template <Kernel K, Transfer T>
-void gather_all(const Grid& g, Real dt, Particles& p, AdvectStats* advect, ChunkBounds* bounds) {
-  constexpr std::size_t C = ChunkBounds::kChunk;
+void gather_all(const Grid& g, Real dt, Particles& p, AdvectStats* advect) {
   const std::size_t n = p.size();
-  const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + C - 1) / C);
-  if (bounds) {
-    bounds->resize(n);
-    bounds->valid = advect != nullptr;
-  }
+  const std::ptrdiff_t batches = static_cast<std::ptrdiff_t>((n + kLanes - 1) / kLanes);
+  const AdvectBox box(g);
   std::size_t clamped = 0, nonfinite = 0;
   Real v2 = 0;
-  // Handed out guided (shares shrinking to 1,024 particles) as threads come free: on a
-  // machine whose cores' speeds differ from minute to minute (a virtual machine sharing its
-  // host) the faster core takes more, and large first shares keep each core on its own part
-  // of the grid. Every particle's values are its own, so they do not depend on the schedule.
-#pragma omp parallel for schedule(guided, 1024 / C) reduction(+ : clamped, nonfinite) \
+  // Handed out guided (chunks shrinking to 64 lane sets) as threads come free: on a machine
+  // whose cores' speeds differ from minute to minute (a virtual machine sharing its host) the
+  // faster core takes more, and large first chunks keep each core on its own part of the
+  // grid. Every particle's values are its own, so they do not depend on the schedule.
+#pragma omp parallel for schedule(guided, 64) reduction(+ : clamped, nonfinite) \
     reduction(max : v2) if (n >= kParallelMinItems)
-  for (std::ptrdiff_t k = 0; k < chunks; ++k)
-    gather_chunk<K, T>(g, dt, p, static_cast<std::size_t>(k), 0, n, advect != nullptr, clamped,
-                       nonfinite, v2, bounds);
+  for (std::ptrdiff_t b = 0; b < batches; ++b) {
+    const std::size_t q0 = static_cast<std::size_t>(b) * kLanes;
+    const std::size_t count = std::min(kLanes, n - q0);
+    alignas(64) float v[3][kLanes];
+    gather_batch<K, T>(g, dt, q0, count, p, v);
+    if (advect) advect_batch(box, dt, q0, count, v, p, clamped, nonfinite, v2);
+  }
   if (advect) *advect = {clamped, nonfinite, std::sqrt(v2)};
 }
 
@@ -1194,17 +1125,15 @@ void ScatterImpl(const Particles& p, const ParticleOrder& ord, Transfer t, Kerne
   dispatch(t, k, [&]<Kernel K, Transfer T>() { scatter_all<K, T>(p, ord, dt, fold, g); });
 }
 
-void GatherImpl(const Grid& g, Transfer t, Kernel k, Real dt, Particles& p, AdvectStats* advect,
-                ChunkBounds* bounds) {
-  dispatch(t, k, [&]<Kernel K, Transfer T>() { gather_all<K, T>(g, dt, p, advect, bounds); });
+void GatherImpl(const Grid& g, Transfer t, Kernel k, Real dt, Particles& p, AdvectStats* advect) {
+  dispatch(t, k, [&]<Kernel K, Transfer T>() { gather_all<K, T>(g, dt, p, advect); });
 }
 
 void GatherRangeImpl(const Grid& g, Transfer t, Kernel k, Real dt, Particles& p, std::size_t first,
-                     std::size_t last, AdvectStats* advect, ChunkBounds* bounds) {
+                     std::size_t last, AdvectStats* advect) {
   if (first % kLanes != 0) throw std::invalid_argument("gather_range: first not a lane multiple");
-  dispatch(t, k, [&]<Kernel K, Transfer T>() {
-    gather_range<K, T>(g, dt, p, first, last, advect, bounds);
-  });
+  dispatch(t, k,
+           [&]<Kernel K, Transfer T>() { gather_range<K, T>(g, dt, p, first, last, advect); });
 }
 
 std::size_t CellKeysImpl(const Particles& p, Kernel kernel, const Grid& g, const Vec3i& lo,
@@ -1245,9 +1174,9 @@ void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, 
 }
 
 void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,
-            AdvectStats* advect, ChunkBounds* bounds) {
+            AdvectStats* advect) {
   prepare_gather(grid);
-  HWY_DYNAMIC_DISPATCH(GatherImpl)(grid, transfer, kernel, dt, p, advect, bounds);
+  HWY_DYNAMIC_DISPATCH(GatherImpl)(grid, transfer, kernel, dt, p, advect);
 }
 
 void prepare_gather(const Grid& grid) {
@@ -1264,9 +1193,8 @@ void prepare_gather(const Grid& grid) {
 }
 
 void gather_range(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,
-                  std::size_t first, std::size_t last, AdvectStats* advect, ChunkBounds* bounds) {
-  HWY_DYNAMIC_DISPATCH(GatherRangeImpl)
-  (grid, transfer, kernel, dt, p, first, last, advect, bounds);
+                  std::size_t first, std::size_t last, AdvectStats* advect) {
+  HWY_DYNAMIC_DISPATCH(GatherRangeImpl)(grid, transfer, kernel, dt, p, first, last, advect);
 }
 
 std::size_t cell_keys(const Particles& p, Kernel kernel, const Grid& grid, const Vec3i& lo,

@@ -35,26 +35,21 @@ void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, 
 /// grid_to_particles with one SIMD lane per particle, L consecutive particles at a time: the
 /// weights computed once per lane set, node velocities gathered from grid.velocity_f (which
 /// this fills from grid.velocity). With `advect`, each lane set is then advected in lanes
-/// (advect_particle's operations, x + dt v as one FMA) and the counts written there; with
-/// `advect` and `bounds`, each chunk's box of the advected positions is written to `bounds`
-/// (sized and marked valid here; without `advect`, marked invalid).
+/// (advect_particle's operations, x + dt v as one FMA) and the counts written there.
 void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,
-            AdvectStats* advect = nullptr, ChunkBounds* bounds = nullptr);
+            AdvectStats* advect = nullptr);
 
 /// gather in parts: prepare_gather fills grid.velocity_f from grid.velocity, then each
 /// gather_range call gathers particles [first, last) on the calling thread (no parallel
 /// region; `first` a multiple of kGatherAlign), in the lane sets gather makes, so every
 /// particle gets gather's values. With `advect`, its counts are added there and its speed
-/// raised to the range's largest, and with `bounds` (sized by the caller) the box of each chunk
-/// whose particles all lie in the range is written there.
+/// raised to the range's largest.
 void prepare_gather(const Grid& grid);
 /// The part of gather (after prepare_gather) for particles [first, last), on this thread.
 void gather_range(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,
-                  std::size_t first, std::size_t last, AdvectStats* advect,
-                  ChunkBounds* bounds = nullptr);
-/// What gather_range's `first` must be a multiple of: the widest target's lanes, times four
-/// (a chunk of ChunkBounds).
-inline constexpr std::size_t kGatherAlign = ChunkBounds::kChunk;
+                  std::size_t first, std::size_t last, AdvectStats* advect);
+/// What gather_range's `first` must be a multiple of: the widest target's lanes, times four.
+inline constexpr std::size_t kGatherAlign = 64;
 
 /// sort_by_cell's keys of particles [first, last): the cell of `kernel`'s stencil base less
 /// `lo`, in a box of `ext` cells, x slowest, in double lanes with make_stencil's operations
