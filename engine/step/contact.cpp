@@ -11,7 +11,6 @@
 #include "engine/core/hash.h"
 #include "engine/core/radix_sort.h"
 #include "engine/step/domain_quadrature.h"
-#include "engine/step/transfer.h"
 
 namespace mpm {
 
@@ -1378,7 +1377,7 @@ Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Colli
 std::vector<char> contact_chunks(const std::vector<WallPlane>& planes,
                                  const std::vector<Collider>& colliders, const BufferLayers& layers,
                                  Kernel kernel, Real time, const Particles& p, const Grid& g,
-                                 std::size_t chunk, const ChunkBounds* bounds) {
+                                 std::size_t chunk) {
   const std::size_t n = p.size(), chunks = (n + chunk - 1) / chunk;
   std::vector<char> near(chunks, 1);
   const Real cell = g.h.maxCoeff();
@@ -1405,25 +1404,17 @@ std::vector<char> contact_chunks(const std::vector<WallPlane>& planes,
   }
   const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(chunks);
   const bool par = n >= static_cast<std::size_t>(kParallelMinItems);
-  const bool known = bounds && chunk == ChunkBounds::kChunk && bounds->hold(n);
 #pragma omp parallel for schedule(static) if (par)
   for (std::ptrdiff_t k = 0; k < count; ++k) {
-    Vec3 lo, hi;
-    if (known) {
-      lo = bounds->lo[k], hi = bounds->hi[k];
-      if (!lo.allFinite()) continue;
-    } else {
-      const std::size_t first = static_cast<std::size_t>(k) * chunk;
-      const std::size_t last = std::min(n, first + chunk);
-      Vec3 probe = Vec3::Zero();
-      lo = p.x[first], hi = lo;
-      for (std::size_t q = first; q < last; ++q) {
-        lo = lo.cwiseMin(p.x[q]);
-        hi = hi.cwiseMax(p.x[q]);
-        probe += p.x[q] - p.x[q];  // NaN from here on if a coordinate is not finite: no branch
-      }
-      if (!(probe.array() == 0).all()) continue;
+    const std::size_t first = static_cast<std::size_t>(k) * chunk;
+    const std::size_t last = std::min(n, first + chunk);
+    Vec3 lo = p.x[first], hi = lo, probe = Vec3::Zero();
+    for (std::size_t q = first; q < last; ++q) {
+      lo = lo.cwiseMin(p.x[q]);
+      hi = hi.cwiseMax(p.x[q]);
+      probe += p.x[q] - p.x[q];  // NaN from here on if a coordinate is not finite: no branch
     }
+    if (!(probe.array() == 0).all()) continue;
     // The nodes of the chunk's stencils, any kernel's, with a node to spare on each side.
     const Vec3 f = (lo - g.origin).cwiseProduct(g.inv_h), t = (hi - g.origin).cwiseProduct(g.inv_h);
     bool free = true;

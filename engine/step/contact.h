@@ -50,8 +50,6 @@
 
 namespace mpm {
 
-struct ChunkBounds;  // engine/step/transfer.h
-
 /// The deepest a particle of an elastic body may lie below its surface at rest and still
 /// have its depth as its contact radius, in half spacings (3/4 of the spacing): deeper ones,
 /// and the second row of a body sampled on a lattice (1.5 spacings deep), keep half the spacing.
@@ -182,14 +180,11 @@ Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Colli
 /// velocities before the contact solve as after it. Bounds: a contact's point lies on its wall
 /// (or within two reaches of a collider's bounds, with a cell to spare), a particle's reach is
 /// at most the widest radius plus a cell, and two stencils of kernel width N cells share a
-/// node only within N cells per axis (widened by a part in 10^6 against rounding). The chunks'
-/// boxes come from `bounds` where they hold the positions now and chunk is theirs, else from a
-/// pass over the positions.
+/// node only within N cells per axis (widened by a part in 10^6 against rounding).
 std::vector<char> contact_chunks(const std::vector<WallPlane>& planes,
                                  const std::vector<Collider>& colliders, const BufferLayers& layers,
                                  Kernel kernel, Real time, const Particles& particles,
-                                 const Grid& grid, std::size_t chunk,
-                                 const ChunkBounds* bounds = nullptr);
+                                 const Grid& grid, std::size_t chunk);
 
 /// The particle ranges of the chunks `near` marks (contact_chunks), consecutive ones joined.
 std::vector<IndexRange> marked_ranges(const std::vector<char>& near, std::size_t chunk,

@@ -377,7 +377,7 @@ void Simulation::add_boundary_stages() {
             simd::supports(sd.transfer, kernel, grid_) &&
             gather_beside(contact, walls_, colliders_,
                           buffer_layers_behind_walls(walls_, time_ + dt, grid_), sd.transfer,
-                          kernel, time_, dt, grid_, particles_, split_gather_, &chunk_bounds_);
+                          kernel, time_, dt, grid_, particles_, split_gather_);
         if (!split) contact(nullptr);
         return;
       }
@@ -440,7 +440,7 @@ void Simulation::build_stages() {
   const bool domain_quadrature = s.quadrature == Quadrature::domain;
   add_stage("sort", [this, domain_quadrature](Real) {
     sort_particles(particles_, scene_.simulation.kernel, grid_, order_,
-                   domain_quadrature ? kDomainReach : 0, &chunk_bounds_);
+                   domain_quadrature ? kDomainReach : 0);
   });
   // With more than one rank: the previous rank's ghost blocks get storage here too.
   if (domain_) add_exchange("halo_blocks", [this](Real) { domain_->share_ghost_blocks(grid_); });
@@ -464,7 +464,6 @@ void Simulation::build_stages() {
       for (auto& m : materials_)  // an object with no particles here (other ranks) has none
         if (m.count > 0) ranges.push_back({m.first, m.count, m.material->state()});
       reorder_particles(ranges, scene_.simulation.transfer == Transfer::flip, order_, particles_);
-      chunk_bounds_.valid = false;  // the particles moved in memory
     });
   if (domain_) add_exchange("halo_sum", [this](Real) { domain_->add_ghost_sums(grid_); });
   add_stage("grid_update", [this](Real) { grid_update(grid_); });

@@ -190,7 +190,6 @@ class Simulation {
   ContactState contact_;  // the contact solve's buffers, reused between substeps
   ContactMemory contact_memory_;  // the contact impulses, kept between substeps (rank 0's)
   SplitGather split_gather_;      // the far particles' gather, run beside the contact stage
-  ChunkBounds chunk_bounds_;      // the sort's boxes of the particles, for the contact's chunks
   std::vector<Stage> stages_;
   double bound_seconds_ = 0;
   double huge_pages_seconds_ = -1;  // advise_heap_huge_pages' time; negative before it runs

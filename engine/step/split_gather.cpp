@@ -73,11 +73,11 @@ void gather_chunks(const std::vector<std::uint32_t>& chunks, const std::function
 bool gather_beside(const ContactPass& contact, const std::vector<WallPlane>& planes,
                    const std::vector<Collider>& colliders, const BufferLayers& layers,
                    Transfer transfer, Kernel kernel, Real time, Real dt, const Grid& grid,
-                   Particles& particles, SplitGather& split, const ChunkBounds* bounds) {
+                   Particles& particles, SplitGather& split) {
   constexpr std::size_t C = simd::kGatherAlign;
   if (omp_get_max_threads() < 2 || static_cast<long>(particles.size()) < kParallelMinItems)
     return false;
-  split.near = contact_chunks(planes, colliders, layers, kernel, time, particles, grid, C, bounds);
+  split.near = contact_chunks(planes, colliders, layers, kernel, time, particles, grid, C);
   const std::vector<std::uint32_t> far = chunks_marked(split, 0);
   if (2 * far.size() < split.near.size()) return false;
   split.advect = {};

@@ -51,11 +51,10 @@ using ContactPass = std::function<void(const std::vector<IndexRange>* search)>;
 /// Returns false, having run nothing, on one thread or where fewer than half the chunks are
 /// far (most particles near a wall: the contact then gains more from the team's threads than
 /// the far gather does beside it); the caller then runs the plain contact and gather.
-/// `bounds`: the chunks' boxes (contact_chunks), if the caller has them.
 bool gather_beside(const ContactPass& contact, const std::vector<WallPlane>& planes,
                    const std::vector<Collider>& colliders, const BufferLayers& layers,
                    Transfer transfer, Kernel kernel, Real time, Real dt, const Grid& grid,
-                   Particles& particles, SplitGather& split, const ChunkBounds* bounds = nullptr);
+                   Particles& particles, SplitGather& split);
 
 /// Gathers and advects the chunks gather_beside left (in parallel, once the contact and the
 /// domain boundary have set their nodes) and writes the whole advection's counts to `advect`.

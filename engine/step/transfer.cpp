@@ -130,55 +130,26 @@ void radix_sort(std::size_t cells, ParticleOrder& ord) {
       [&](std::uint32_t i) { return keys[i]; }, ord.order, ord.scratch);
 }
 
-/// The least and greatest coordinates of the particles (non-finite ones left out), by a
-/// min/max pass over the positions; with `bounds`, each chunk's box is written there too.
-std::pair<Vec3, Vec3> position_bounds(const Particles& p, ChunkBounds* bounds) {
-  constexpr std::size_t C = ChunkBounds::kChunk;
-  const std::size_t n = p.size();
-  const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + C - 1) / C);
-  if (bounds) {
-    bounds->lo.resize(static_cast<std::size_t>(chunks));
-    bounds->hi.resize(static_cast<std::size_t>(chunks));
-    bounds->valid = true;
-  }
-  Real lx = std::numeric_limits<Real>::max(), ly = lx, lz = lx, hx = -lx, hy = hx, hz = hx;
-#pragma omp parallel for schedule(static) reduction(min           \
-                                                    : lx, ly, lz) \
-    reduction(max                                                 \
-              : hx, hy, hz) if (static_cast <long>(n) >= kParallelMinItems)
-  for (std::ptrdiff_t k = 0; k < chunks; ++k) {
-    const std::size_t first = static_cast<std::size_t>(k) * C, last = std::min(n, first + C);
-    Real cx = std::numeric_limits<Real>::max(), cy = cx, cz = cx, dx = -cx, dy = dx, dz = dx;
-    bool finite = true;  // no branch per coordinate: x - x is 0 unless x is not finite
-    for (std::size_t i = first; i < last; ++i) {
-      const Vec3& x = p.x[i];
-      cx = std::min(cx, x.x()), cy = std::min(cy, x.y()), cz = std::min(cz, x.z());
-      dx = std::max(dx, x.x()), dy = std::max(dy, x.y()), dz = std::max(dz, x.z());
-      finite &= (x.x() - x.x() == 0) & (x.y() - x.y() == 0) & (x.z() - x.z() == 0);
-    }
-    lx = std::min(lx, cx), ly = std::min(ly, cy), lz = std::min(lz, cz);
-    hx = std::max(hx, dx), hy = std::max(hy, dy), hz = std::max(hz, dz);
-    if (!bounds) continue;
-    bounds->lo[k] = finite ? Vec3(cx, cy, cz) : Vec3::Constant(std::nan(""));
-    bounds->hi[k] = Vec3(dx, dy, dz);
-  }
-  return {Vec3(lx, ly, lz), Vec3(hx, hy, hz)};
-}
-
 /// Sorts by the base cell of kernel K's stencil (dispatched once, not per particle), activates
 /// the blocks the stencils touch and places the slabs.
 template <Kernel K>
-void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord, int reach,
-                  ChunkBounds* bounds) {
+void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord, int reach) {
   const std::size_t n = p.size();
   const Vec3 origin = grid.origin, inv_h = grid.inv_h;
   // Bounds of the stencil bases: the active nodes are [lo, hi + N - 1]. The base is a
   // non-decreasing function of each coordinate, so the bounds are the bases of the smallest
-  // and largest coordinates: no floor per particle.
-  const auto [least, most] = position_bounds(p, bounds);
-  const Vec3i lo = stencil_base<K>(least, origin, inv_h);
-  const Vec3i hi = stencil_base<K>(most, origin, inv_h);
+  // and largest coordinates: a min/max pass with no floor per particle.
+  Real lx = std::numeric_limits<Real>::max(), ly = lx, lz = lx, hx = -lx, hy = hx, hz = hx;
   const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(static) reduction(min : lx, ly, lz) \
+    reduction(max : hx, hy, hz) if (count >= kParallelMinItems)
+  for (std::ptrdiff_t i = 0; i < count; ++i) {
+    const Vec3& x = p.x[i];
+    lx = std::min(lx, x.x()), ly = std::min(ly, x.y()), lz = std::min(lz, x.z());
+    hx = std::max(hx, x.x()), hy = std::max(hy, x.y()), hz = std::max(hz, x.z());
+  }
+  const Vec3i lo = stencil_base<K>(Vec3(lx, ly, lz), origin, inv_h);
+  const Vec3i hi = stencil_base<K>(Vec3(hx, hy, hz), origin, inv_h);
   const Vec3i ext = hi - lo + Vec3i::Ones();
   ord.lo = lo, ord.ext = ext;
 
@@ -251,8 +222,7 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord, int reach,
 
 }  // namespace
 
-void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& ord, int reach,
-                    ChunkBounds* bounds) {
+void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& ord, int reach) {
   ord.order.resize(p.size());
   if (p.size() == 0) {
     grid.release_blocks();
@@ -260,7 +230,7 @@ void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder
     ord.slab_start.assign(1, 0);
     return;
   }
-  dispatch_kernel(kernel, [&]<Kernel K>() { sort_by_cell<K>(p, grid, ord, reach, bounds); });
+  dispatch_kernel(kernel, [&]<Kernel K>() { sort_by_cell<K>(p, grid, ord, reach); });
 }
 
 namespace {
@@ -471,8 +441,8 @@ void gather_all(const Grid& g, Real flip_blend, Real dt, Particles& p) {
 
 }  // namespace
 
-void grid_to_particles(const Grid& g, Transfer transfer, Kernel kernel, Real flip_blend, Real dt,
-                       Particles& p, TransferPath path, AdvectStats* advect) {
+void grid_to_particles(const Grid& g, Transfer transfer, Kernel kernel, Real flip_blend,
+                       Real dt, Particles& p, TransferPath path, AdvectStats* advect) {
   if (path == TransferPath::simd && simd::supports(transfer, kernel, g))
     return simd::gather(g, transfer, kernel, dt, p, advect);
   dispatch_kernel(kernel, [&]<Kernel K>() {

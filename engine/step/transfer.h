@@ -43,19 +43,6 @@ struct ParticleOrder {
   std::vector<std::uint32_t> scratch;
 };
 
-/// Where the particles lie, chunk by chunk: the box of each run of kChunk consecutive
-/// particles, as the sort found them in its pass over the positions. The contact stage takes
-/// its far chunks (contact_chunks) from these boxes instead of reading every position again.
-struct ChunkBounds {
-  static constexpr std::size_t kChunk = 64;  ///< Particles per chunk (the last one fewer).
-  std::vector<Vec3> lo;  ///< Each chunk's least coordinates; NaN where one is not finite.
-  std::vector<Vec3> hi;  ///< Each chunk's greatest coordinates.
-  bool valid = false;    ///< The boxes are those of the positions now (their owner says).
-
-  /// Whether they are the boxes of the positions of `n` particles now.
-  bool hold(std::size_t n) const { return valid && lo.size() == (n + kChunk - 1) / kChunk; }
-};
-
 /// Runs f(s) for every slab s of `order`, in parallel from `parallel_from` particles: the even
 /// slabs are handed out first, in order, then the odd ones, and an odd slab starts once the
 /// even slabs beside it are done. Every node so receives its even slab's sums before its odd
@@ -91,9 +78,8 @@ void for_each_slab(const ParticleOrder& order, Fn&& f, long parallel_from = kPar
 /// stencils touch (Grid::activate_blocks). Slabs are wide enough for the kernel (2 cells, 3
 /// for cubic). A scatter that reaches `reach` nodes beyond the stencil on each side (the
 /// particle domains', domain_quadrature.h) gets those nodes' blocks and wider slabs.
-/// With `bounds`, the boxes of the chunks of particles are written there (and marked valid).
 void sort_particles(const Particles& p, Kernel kernel, Grid& grid, ParticleOrder& order,
-                    int reach = 0, ChunkBounds* bounds = nullptr);
+                    int reach = 0);
 
 /// Zeroes every stored node's mass and momentum (and FLIP's force) before a scatter.
 void clear_node_sums(Grid& grid);
@@ -136,8 +122,8 @@ struct AdvectStats {
 /// With `advect`, the particles are also advected with their new velocities (as
 /// advect_particles, which then must not run) and what advection saw is written there: on the
 /// SIMD path in the same pass over the particles, so x and v are read from memory once.
-void grid_to_particles(const Grid& grid, Transfer transfer, Kernel kernel, Real flip_blend, Real dt,
-                       Particles& p, TransferPath path = TransferPath::scalar,
+void grid_to_particles(const Grid& grid, Transfer transfer, Kernel kernel, Real flip_blend,
+                       Real dt, Particles& p, TransferPath path = TransferPath::scalar,
                        AdvectStats* advect = nullptr);
 
 /// The box advection keeps particles in: the grid interior, outside the buffer cells.

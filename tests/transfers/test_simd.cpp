@@ -2,21 +2,18 @@
 // conserves what APIC conserves.
 #include <omp.h>
 
-#include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <numeric>
 #include <random>
 #include <vector>
 
-#include "engine/step/contact.h"
 #include "engine/step/grid.h"
 #include "engine/step/kernels.h"
 #include "engine/step/reorder.h"
 #include "engine/step/simd/stress_simd.h"
 #include "engine/step/simd/transfer_simd.h"
 #include "engine/step/transfer.h"
-#include "engine/step/walls.h"
 #include "materials/corotated.h"
 #include "materials/elastic_group.h"
 
@@ -377,66 +374,6 @@ TEST_CASE("SIMD transfers give the same results for 1 and 2 threads", "[transfer
     CHECK(pa.C == pb.C);
     CHECK(pa.F == pb.F);
   }
-}
-
-TEST_CASE(
-    "The sort's chunk boxes are the positions' own, and the contact's chunks read them as "
-    "the positions",
-    "[transfers][contact]") {
-  constexpr std::size_t C = ChunkBounds::kChunk;
-  Particles p = cloud(21);  // 3000: the last chunk partial
-  Grid g(grid16(), false);
-  ParticleOrder ord;
-  sort_particles(p, Kernel::quadratic, g, ord);
-  reorder_as(ord, p);  // in cell order: chunks are small boxes, some far from the walls
-  ChunkBounds bounds;
-  for (Kernel kernel : {Kernel::linear, Kernel::quadratic, Kernel::cubic}) {
-    Grid ga(grid16(), false), gb(grid16(), false);
-    ParticleOrder with, without;
-    sort_particles(p, kernel, ga, with, 0, &bounds);
-    sort_particles(p, kernel, gb, without);
-    CHECK(with.order == without.order);
-    CHECK(with.lo == without.lo);
-    CHECK(with.ext == without.ext);
-    CHECK(with.slab_start == without.slab_start);
-  }
-  const std::size_t chunks = (p.size() + C - 1) / C;
-  REQUIRE(bounds.hold(p.size()));
-  REQUIRE(bounds.lo.size() == chunks);
-  for (std::size_t k = 0; k < chunks; ++k) {
-    Vec3 lo = p.x[k * C], hi = lo;
-    for (std::size_t q = k * C; q < std::min(p.size(), (k + 1) * C); ++q) {
-      lo = lo.cwiseMin(p.x[q]);
-      hi = hi.cwiseMax(p.x[q]);
-    }
-    CHECK(bounds.lo[k] == lo);
-    CHECK(bounds.hi[k] == hi);
-  }
-  // The contact's chunks, for a floor under the cloud's lower part and a slanted wall beside
-  // it (no domain boundary near), from the boxes and from the positions.
-  std::vector<WallPlane> planes;
-  for (const Vec3& n : {Vec3(0, 1, 0), Vec3(0.8, 0.6, 0)})
-    planes.push_back({Vec3::Constant(0.5) - 0.18 * n, n, Boundary::separate, 0, Vec3::Zero(), {}});
-  const BufferLayers layers{Vec3i::Constant(-100), Vec3i::Constant(100)};
-  const auto near = [&](const ChunkBounds* b) {
-    return contact_chunks(planes, {}, layers, Kernel::quadratic, 0, p, g, C, b);
-  };
-  const std::vector<char> from_positions = near(nullptr);
-  CHECK(near(&bounds) == from_positions);
-  CHECK(std::count(from_positions.begin(), from_positions.end(), 0) > 0);
-  CHECK(std::count(from_positions.begin(), from_positions.end(), 1) > 0);
-  // A chunk with a coordinate that is not finite (its box's lo NaN, as the sort marks it; the
-  // sort itself needs finite positions) is near, as without boxes.
-  const std::size_t far = static_cast<std::size_t>(
-      std::find(from_positions.begin(), from_positions.end(), 0) - from_positions.begin());
-  p.x[far * C + 5].y() = std::numeric_limits<Real>::quiet_NaN();
-  bounds.lo[far] = Vec3::Constant(std::numeric_limits<Real>::quiet_NaN());
-  const std::vector<char> with_nan = near(&bounds);
-  CHECK(with_nan == near(nullptr));
-  CHECK(with_nan[far] == 1);
-  // Boxes marked stale are not read.
-  bounds.valid = false;
-  CHECK(near(&bounds) == near(nullptr));
 }
 
 TEST_CASE("MLS keeps mass, momentum and angular momentum through a transfer like APIC",
