@@ -104,7 +104,8 @@ TEST_CASE("determinism: bit-identical state for 1 and 2 threads", "[physics]") {
 TEST_CASE("reorder: particles moved in memory by cell, the same motion by id to round-off",
           "[physics]") {
   // Reordering changes which particle of a cell is added first to the grid sums (the sort
-  // breaks ties by memory index), so it changes results at round-off, and only there.
+  // breaks ties by memory index), so it changes results at round-off, and only there, except
+  // where the contact solve amplifies it (below).
   const int threads = omp_get_max_threads();
   for (const bool simd : {false, true}) {
     INFO((simd ? "SIMD transfers" : "scalar transfers"));
@@ -129,14 +130,30 @@ TEST_CASE("reorder: particles moved in memory by cell, the same motion by id to 
     // Scalar: the sums differ at double round-off; F and C are stored with epsilon kStoredEps,
     // so what surfaces is a few storage roundings of F. Bound: one storage epsilon of a cell
     // (h = 1/40), 3e-9 m; measured 3.3e-10 m after 4 frames of the float build.
+    if (!simd) {
+      CHECK(dx < test::kStoredEps / 40);
+      continue;
+    }
     // SIMD: the sums are float, so each run is within test::simd_position_bound of the exact
     // transfers (support/float_bounds.h) and the two within twice that; speeds at most
-    // |v0| + g t = sqrt(2) + 9.81 * 0.04 (or the largest seen at the end, if more). 1.0e-6 m;
-    // measured 9.0e-9 m.
-    double speed = std::sqrt(2.0) + 9.81 * 0.04;
-    for (const auto* sim : {never.get(), often.get()})
+    // |v0| + g t = sqrt(2) + 9.81 * 0.04 (or the largest seen at the end, if more). 1.0e-6 m.
+    // The floor's contact solve (12 projected Jacobi iterations, not run to convergence) is
+    // not a smooth function of its input: a float round-off can change which particles are in
+    // reach or push, and its unconverged answer then moves by up to what it leaves unresolved,
+    // its residual. So near the floor the velocities may differ by up to the mean residual of
+    // the solves, and positions by that times the run's 0.04 s. Measured (AVX2): 4.4e-4 m/s
+    // and 3.8e-6 m, against a residual of 2.3e-3 m/s; without the floor the same runs differ
+    // by 1.1e-6 m/s and 8.4e-8 m in their frames (on AVX-512 also with it: 9.0e-9 m).
+    double speed = std::sqrt(2.0) + 9.81 * 0.04, residual = 0;
+    for (const auto* sim : {never.get(), often.get()}) {
       for (const Vec3& v : sim->particles().v) speed = std::max(speed, v.norm());
-    CHECK(dx < (simd ? 2 * test::simd_position_bound(0.04, speed) : test::kStoredEps / 40));
+      const ContactSolveStats& solves = sim->contact_memory().stats;
+      REQUIRE(solves.solves > 0);
+      residual = std::max(residual, solves.residual / static_cast<double>(solves.solves));
+    }
+    INFO("the contact solves' mean residual " << residual << " m/s");
+    CHECK(dv < residual);
+    CHECK(dx < 2 * test::simd_position_bound(0.04, speed) + residual * 0.04);
   }
 }
 
