@@ -129,7 +129,7 @@ HWY_INLINE hn::Vec<D> join_lanes(D d, const VD* h) {
 /// M's columns are triples (rows of the first round), each row's columns the second.
 /// (Float storage only: a double build never calls it, see kFloatMatrices.)
 template <class T>
-void load_matrices(const T* m, VF out[9]) {
+HWY_INLINE void load_matrices(const T* m, VF out[9]) {
   if constexpr (std::is_same_v<T, float>) {
     const DF d;
     alignas(64) float rows[3][3 * kLanes];
@@ -146,7 +146,7 @@ void load_matrices(const T* m, VF out[9]) {
 
 /// The inverse of load_matrices: stores lane l's matrix (in[3 c + r] = M(r, c)) at m + 9 l.
 template <class T>
-void store_matrices(const VF in[9], T* m) {
+HWY_INLINE void store_matrices(const VF in[9], T* m) {
   if constexpr (std::is_same_v<T, float>) {
     const DF d;
     alignas(64) float rows[3][3 * kLanes];
@@ -327,10 +327,10 @@ void fill_stress(const Particles& p, const ParticleOrder& ord, std::span<const B
     hn::Mask<DF> redo = hn::FirstN(d, 0);
     for (int k = 0; present >> k; ++k) {
       if (!(present >> k & 1) || k == static_cast<int>(BatchModel::Kind::group)) continue;
-      VF mine[9];
-      const auto m = lanes::neg_v0_tau(static_cast<BatchModel::Kind>(k), d, fv, pv, v0, mine);
+      VF mine[9];  // one model: its stresses straight into tau (no copy)
+      const auto m =
+          lanes::neg_v0_tau(static_cast<BatchModel::Kind>(k), d, fv, pv, v0, uniform ? tau : mine);
       if (uniform) {
-        for (int e = 0; e < 9; ++e) tau[e] = mine[e];
         redo = m;
         continue;
       }
@@ -510,6 +510,10 @@ void fill_batch(const Particles& p, const ParticleOrder& ord, std::span<const Ba
 /// plane adds them times its x factors, broadcast: momentum e at (i, j, k) is
 /// X_e(i) A + wx(i) B_e with A = wy wz and B_e = Y_e(j) wz + wy Z_e(k). With fewer lanes,
 /// node n = (i N + j) N + k sits in lane n of NV vectors and takes all three factors by lookup.
+/// With one lane fewer than N^2 (the quadratic kernel on AVX2: 8 lanes, 9 nodes a plane),
+/// planes still: each plane's last node (i, N - 1, N - 1) goes to a tail vector instead, whose
+/// lane i sums it from the particle's x rows as loaded, times the scalars A and B_e there
+/// (eight lookups a particle, not the 48 of the node layout).
 ///
 /// Long because it is the SIMD scatter's hot loop: the window's sums (acc) and its lane tables
 /// stay in registers across the loop over particles and the slide along z; split into
@@ -519,9 +523,11 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
                    Real dt, std::span<const BatchModel> fold, Grid& g) {
   using Traits = KernelTraits<K>;
   constexpr int N = Traits::kNodes, kNodes = N * N * N;
-  constexpr bool kPlanes = kLanes >= static_cast<std::size_t>(N * N);
+  constexpr bool kTail = kLanes + 1 == static_cast<std::size_t>(N * N);
+  constexpr bool kPlanes = kLanes >= static_cast<std::size_t>(N * N) || kTail;
   constexpr int NV = kPlanes ? N : static_cast<int>((kNodes + kLanes - 1) / kLanes);
-  constexpr int kSlots = NV * static_cast<int>(kLanes);
+  constexpr int NA = NV + (kTail ? 1 : 0);  // accumulator vectors per component
+  constexpr int kSlots = NA * static_cast<int>(kLanes);
   const DF d;
   const DI di;
   // Per lane: the node's (i, j, k) as table indices (padding lanes: 0, summed but never
@@ -531,7 +537,7 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
   alignas(64) std::int32_t ti[kSlots], tj[kSlots], tk[kSlots], keep_bits[kSlots];
   alignas(64) std::int32_t rotate[kLanes];
   int lane_of[kNodes];
-  for (int n = 0; n < kSlots; ++n) {
+  for (int n = 0; n < NV * static_cast<int>(kLanes); ++n) {
     const int r = n % static_cast<int>(kLanes);
     const bool valid = kPlanes ? r < N * N : n < kNodes;
     const int i = kPlanes ? n / static_cast<int>(kLanes) : n / (N * N);
@@ -540,6 +546,8 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
     keep_bits[n] = valid && jk % N != N - 1 ? -1 : 0;
     if (valid) lane_of[i * N * N + jk] = n;
   }
+  if constexpr (kTail)  // node (i, N - 1, N - 1): the tail vector's lane i
+    for (int i = 0; i < N; ++i) lane_of[(i + 1) * N * N - 1] = NV * static_cast<int>(kLanes) + i;
   for (std::size_t t = 0; t < kLanes; ++t) rotate[t] = static_cast<std::int32_t>((t + 1) % kLanes);
   const auto rot = hn::SetTableIndices(d, rotate);
   const auto last_lane = hn::RebindMask(
@@ -548,11 +556,11 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
   for (int v = 0; v < NV; ++v)
     keep[v] = hn::RebindMask(d, hn::Ne(hn::Load(di, keep_bits + v * kLanes), hn::Zero(di)));
   const bool fl = g.float_nodes;
-  VF acc[4][NV];  // mass, momentum x, y, z per node, summed over the window's cells
+  VF acc[4][NA];  // mass, momentum x, y, z per node, summed over the window's cells
   alignas(64) float out[4][kSlots];
   const auto spill = [&] {
     for (int a = 0; a < 4; ++a)
-      for (int v = 0; v < NV; ++v) hn::Store(acc[a][v], d, out[a] + v * kLanes);
+      for (int v = 0; v < NA; ++v) hn::Store(acc[a][v], d, out[a] + v * kLanes);
   };
   // Adds the window's sums of stencil nodes c * stride (numbered (i N + j) N + k), c < count,
   // to the grid at storage indices at[c], from `out` (where spill stores the sums).
@@ -606,6 +614,12 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
       for (auto& a : acc) {
         VF r[NV];
         for (int v = 0; v < NV; ++v) r[v] = hn::TableLookupLanes(a[v], rot);
+        if constexpr (kTail) {  // plane v's lane kLanes - 1 takes its node (v, N - 1, N - 1)
+          alignas(64) float tail[kLanes];
+          hn::Store(a[NV], d, tail);
+          for (int v = 0; v < NV; ++v) r[v] = hn::IfThenElse(last_lane, hn::Set(d, tail[v]), r[v]);
+          a[NV] = hn::Zero(d);
+        }
         for (int v = 0; v < NV; ++v)  // node layout: lane kLanes - 1 takes the next vector's 0
           a[v] = hn::IfThenElseZero(
               keep[v], !kPlanes && v + 1 < NV ? hn::IfThenElse(last_lane, r[v + 1], r[v]) : r[v]);
@@ -644,6 +658,16 @@ void scatter_range(const Particles& p, const ParticleOrder& ord, std::size_t beg
           for (int e = 0; e < 3; ++e)
             acc[1 + e][i] = hn::MulAdd(hn::Set(d, pb.t[0][e][N * l + i]), A,
                                        hn::MulAdd(wx, B[e], acc[1 + e][i]));
+        }
+        if constexpr (kTail) {  // lane i: node (i, N - 1, N - 1), as a plane's lane computes it
+          const auto last = [&](const float* r) { return hn::Set(d, r[N * l + N - 1]); };
+          const VF wy2 = last(pb.w[1]), wz2 = last(pb.w[2]), A2 = hn::Mul(wy2, wz2);
+          const VF wx = row(pb.w[0]);
+          acc[0][NV] = hn::MulAdd(wx, hn::Mul(hn::Set(d, pb.m[l]), A2), acc[0][NV]);
+          for (int e = 0; e < 3; ++e) {
+            const VF B2 = hn::MulAdd(last(pb.t[1][e]), wz2, hn::Mul(wy2, last(pb.t[2][e])));
+            acc[1 + e][NV] = hn::MulAdd(row(pb.t[0][e]), A2, hn::MulAdd(wx, B2, acc[1 + e][NV]));
+          }
         }
       } else {
         VF W[3], X[3][3];
@@ -719,15 +743,6 @@ HWY_INLINE void gather_stencil(const Grid& g, const Particles& p, std::size_t q0
   }
 }
 
-/// F of particles [q0, q0 + count) in float lanes (the last particle repeated in unused
-/// lanes): Fin[e][l] is entry e (column-major) of lane l's F.
-HWY_INLINE void load_F_lanes(const Particles& p, std::size_t q0, std::size_t count,
-                             float (*Fin)[kLanes]) {
-  VF f[9];
-  load_matrix_lanes(&p.F[q0], count, f);
-  for (int e = 0; e < 9; ++e) hn::Store(f[e], DF(), Fin[e]);
-}
-
 /// Writes lanes [0, count) of the gather's results to particles [q0, q0 + count): F from
 /// out[0, 9), C from out[9, 18) (affine transfers only), v from out[18, 21), each column-major.
 template <bool kAffine>
@@ -774,7 +789,7 @@ HWY_INLINE void store_gathered(const float (*out)[kLanes], std::size_t q0, std::
 /// gather's hot kernel: the stencil's weights, node addresses and running sums (about 40
 /// vectors) stay in registers from the stencil to the F and C update; split into functions
 /// they would be passed through memory. Its jobs, in order: the stencil (gather_stencil), F
-/// (load_F_lanes), the lanes' distinct cells, node addresses, weights, the stencil sums, C,
+/// (load_matrix_lanes), the lanes' distinct cells, node addresses, weights, the stencil sums, C,
 /// the F update, then the stores (store_gathered).
 template <Kernel K, Transfer T>
 void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Particles& p,
@@ -785,10 +800,11 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   constexpr bool kGrad = T != Transfer::mls;  // MLS updates F with C, not with grad w
   const DF d;
   const DI di;
-  alignas(64) float dist[3][kLanes], corner[3][kLanes], Fin[9][kLanes];
+  alignas(64) float dist[3][kLanes], corner[3][kLanes];
   alignas(64) std::int32_t base[3][kLanes];
   gather_stencil<K>(g, p, q0, count, dist, corner, base);
-  load_F_lanes(p, q0, count, Fin);
+  VF Fin[9];  // F in lanes: Fin[e] holds entry e (column-major) of each lane's F
+  load_matrix_lanes(&p.F[q0], count, Fin);
   // The distinct stencil cells of the lanes: with at most kMaxCells of them, each cell's node
   // velocities are loaded once and spread to its lanes by blends, instead of gathered lane by
   // lane. The values are the same either way. The reorder stage keeps a cell's particles
@@ -880,8 +896,9 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     sv[e] = hn::Zero(d);
     for (int a = 0; a < 3; ++a) sg[e][a] = sb[e][a] = hn::Zero(d);
   }
-  const auto sum_components = [&](auto e0, auto e1) {
+  const auto sum_components = [&](auto e0, auto e1, auto kc) {
     constexpr int E0 = decltype(e0)::value, E1 = decltype(e1)::value;
+    const int ncells = decltype(kc)::value > 0 ? decltype(kc)::value : cells;  // kc: 0, any
     for (int i = 0; i < N; ++i)
       for (int j = 0; j < N; ++j) {
         VF r0[3], r1[3], r2[3];
@@ -904,7 +921,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
                 return hn::Set(d, e < 2 ? vf[2 * x + e] : vel_z[x]);
               };
               v3[e] = node(0);
-              for (int r = 1; r < cells; ++r) v3[e] = hn::IfThenElse(in_cell[r], node(r), v3[e]);
+              for (int r = 1; r < ncells; ++r) v3[e] = hn::IfThenElse(in_cell[r], node(r), v3[e]);
             }
           } else {
             const VI sl = hn::IfThenElse(up[2][k], sij[1], sij[0]);
@@ -947,8 +964,18 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
         }
       }
   };
-  sum_components(std::integral_constant<int, 0>{}, std::integral_constant<int, 2>{});
-  sum_components(std::integral_constant<int, 2>{}, std::integral_constant<int, 3>{});
+  // One or two cells (most batches: a cell holds more particles than a batch has lanes) with
+  // their count known to the compiler, so each node's blends unroll without a loop.
+  const auto sum_all = [&](auto kc) {
+    sum_components(std::integral_constant<int, 0>{}, std::integral_constant<int, 2>{}, kc);
+    sum_components(std::integral_constant<int, 2>{}, std::integral_constant<int, 3>{}, kc);
+  };
+  if (cells == 1)
+    sum_all(std::integral_constant<int, 1>{});
+  else if (cells == 2)
+    sum_all(std::integral_constant<int, 2>{});
+  else
+    sum_all(std::integral_constant<int, 0>{});
   // C = B D^-1 with B = v corner^T + sum w v (i, j, k)^T diag(h) (Jiang et al. 2015, eq. 8-10);
   // the linear kernel takes C = grad v (section 5.3).
   VF C[3][3];
@@ -969,11 +996,11 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   alignas(64) float out[9 + 9 + 3][kLanes];
   for (int col = 0; col < 3; ++col)
     for (int r = 0; r < 3; ++r) {
-      const VF f = hn::Load(d, Fin[3 * col + r]);
+      const VF f = Fin[3 * col + r];
       VF gf = hn::Zero(d);
       for (int k = 0; k < 3; ++k) {
         const VF G = kGrad ? sg[r][k] : C[r][k];
-        gf = hn::MulAdd(G, hn::Load(d, Fin[3 * col + k]), gf);
+        gf = hn::MulAdd(G, Fin[3 * col + k], gf);
       }
       hn::Store(hn::MulAdd(vdt, gf, f), d, out[3 * col + r]);
     }
