@@ -845,9 +845,10 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   // spans at most two blocks per axis (block b0 or b0 + 1: `up`), so the slots of the eight
   // blocks are gathered from the page table once per batch and chosen per node by blends.
   // A block the lane's stencil does not reach is clamped into the domain and never chosen.
+  // Only for more than kMaxCells cells (never with 8 lanes or fewer).
   VI off[3][N], slots[2][2][2];
   hn::Mask<DI> up[3][N];
-  {
+  if (!few) {
     const std::int32_t stride[3] = {g.blocks.y() * g.blocks.z(), g.blocks.z(), 1};
     const VI mask = hn::Set(di, Grid::kBlockEdge - 1);
     VI page[3][2];
@@ -869,10 +870,8 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     for (int x = 0; x < 2; ++x)
       for (int y = 0; y < 2; ++y)
         for (int z = 0; z < 2; ++z)
-          slots[x][y][z] =
-              few ? hn::Zero(di)
-                  : hn::GatherIndex(di, g.slot.data(),
-                                    hn::Add(hn::Add(page[0][x], page[1][y]), page[2][z]));
+          slots[x][y][z] = hn::GatherIndex(di, g.slot.data(),
+                                           hn::Add(hn::Add(page[0][x], page[1][y]), page[2][z]));
   }
   VF w[3][N], dw[3][N];
   for (int a = 0; a < 3; ++a) {
@@ -899,20 +898,22 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   const auto sum_components = [&](auto e0, auto e1, auto kc) {
     constexpr int E0 = decltype(e0)::value, E1 = decltype(e1)::value;
     const int ncells = decltype(kc)::value > 0 ? decltype(kc)::value : cells;  // kc: 0, any
+    const bool lanes_few = decltype(kc)::value > 0 || few;
     for (int i = 0; i < N; ++i)
       for (int j = 0; j < N; ++j) {
         VF r0[3], r1[3], r2[3];
         for (int e = E0; e < E1; ++e) r0[e] = r1[e] = r2[e] = hn::Zero(d);
-        const VI oij = hn::Add(off[0][i], off[1][j]);
-        VI sij[2];  // the slots of this row's two z blocks
-        if (!few)
+        VI oij, sij[2];  // the row's offset in its block and the slots of its two z blocks
+        if (!lanes_few) {
+          oij = hn::Add(off[0][i], off[1][j]);
           for (int z = 0; z < 2; ++z)
             sij[z] =
                 hn::IfThenElse(up[1][j], hn::IfThenElse(up[0][i], slots[1][1][z], slots[0][1][z]),
                                hn::IfThenElse(up[0][i], slots[1][0][z], slots[0][0][z]));
+        }
         for (int k = 0; k < N; ++k) {
           VF v3[3];
-          if (few) {
+          if (lanes_few) {
             const int n = (i * N + j) * N + k;
             const float* vf = g.velocity_f.data();
             for (int e = E0; e < E1; ++e) {
