@@ -91,6 +91,7 @@ struct BatchModel {
   Real critical_compression = 0;   ///< Snow's theta_c: singular values >= 1 - theta_c.
   Real critical_stretch = 0;       ///< Snow's theta_s: singular values <= 1 + theta_s.
   Real min_Jp = 0;                 ///< Snow's smallest Jp.
+  Real rho0 = 0;                   ///< Snow's rest density, for its wave speed, kg/m^3.
   Real alpha = 0;                  ///< Sand's cone slope.
   Real apex_trace = 0;             ///< Sand's tr(eps) at the cone's apex.
   bool volume_correction = false;  ///< Sand's volume correction on.

@@ -149,6 +149,7 @@ class SnowGroup final : public PlasticGroup<SnowGroup> {
     b.critical_compression = plastic_.critical_compression;
     b.critical_stretch = plastic_.critical_stretch;
     b.min_Jp = plastic_.min_Jp;
+    b.rho0 = rho0_;
     b.state = state_.data();
     return b;
   }

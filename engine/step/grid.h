@@ -158,8 +158,9 @@ void for_each_active_node(const Grid& g, Fn&& f) {
 
 namespace mpm {
 
-/// Momentum to velocity, v_i = (m v)_i / m_i; keeps a copy in velocity_old for FLIP.
-void grid_update(Grid& grid);
+/// Momentum to velocity, v_i = (m v)_i / m_i, then v_i += gravity_dv on nodes with mass (gravity
+/// folded into the same pass over the nodes); keeps a copy in velocity_old for FLIP.
+void grid_update(Grid& grid, const Vec3& gravity_dv = Vec3::Zero());
 
 /// v_i += dt f_i / m_i: the internal forces particles_to_grid scattered for FLIP.
 void apply_stress_forces(Real dt, Grid& grid);

@@ -466,11 +466,17 @@ void Simulation::build_stages() {
       reorder_particles(ranges, scene_.simulation.transfer == Transfer::flip, order_, particles_);
     });
   if (domain_) add_exchange("halo_sum", [this](Real) { domain_->add_ghost_sums(grid_); });
-  add_stage("grid_update", [this](Real) { grid_update(grid_); });
+  // Gravity in the same pass over the nodes as the momentum's division, except for FLIP, whose
+  // old velocity is the one before every force.
+  const bool gravity = s.gravity.squaredNorm() > 0, flip = s.transfer == Transfer::flip;
+  if (gravity && !flip)
+    add_stage("grid_update_gravity",
+              [this](Real dt) { grid_update(grid_, dt * scene_.simulation.gravity); });
+  else
+    add_stage("grid_update", [this](Real) { grid_update(grid_); });
   // PIC and APIC scatter the stress force as an impulse (see particles_to_grid).
-  if (s.transfer == Transfer::flip)
-    add_stage("stress_forces", [this](Real dt) { apply_stress_forces(dt, grid_); });
-  if (s.gravity.squaredNorm() > 0)
+  if (flip) add_stage("stress_forces", [this](Real dt) { apply_stress_forces(dt, grid_); });
+  if (gravity && flip)
     add_stage("gravity", [this](Real dt) { apply_gravity(dt, scene_.simulation.gravity, grid_); });
   if (s.damping > 0)
     add_stage("damping", [this](Real dt) { apply_damping(dt, scene_.simulation.damping, grid_); });
@@ -543,9 +549,13 @@ void Simulation::replace_particles(Particles&& p, const std::vector<std::size_t>
 
 Real Simulation::cfl_bound(Real cfl) const {
   Real c = 0, nu = 0;
-  for (const auto& m : materials_) {
+  const std::vector<BatchModel> lanes = lane_models();
+  for (std::size_t g = 0; g < materials_.size(); ++g) {
+    const auto& m = materials_[g];
     if (m.count == 0) continue;
-    c = std::max(c, m.material->max_wave_speed(slice(particles_.F, m)));
+    const bool in_lanes = g < lanes.size() && simd::supports_wave_speed(lanes[g]);
+    c = std::max(c, in_lanes ? simd::max_wave_speed(lanes[g], slice(particles_.F, m))
+                             : m.material->max_wave_speed(slice(particles_.F, m)));
     nu = std::max(nu, m.material->max_kinematic_viscosity(slice(particles_.F, m)));
   }
   Real speed = max_speed();

@@ -12,6 +12,7 @@
 #include "engine/step/simd/stress_simd.h"
 #include "engine/step/simd/transfer_simd.h"
 #include "materials/sand.h"
+#include "materials/snow.h"
 #include "support/helpers.h"
 
 using namespace mpm;
@@ -178,4 +179,42 @@ TEST_CASE("SIMD return map of water, F = J^(1/3) I, matches the scalar one to F'
     // differ from std::cbrt in the last place, which the bound above allows.)
     if constexpr (std::is_same_v<StoredReal, float>) CHECK(identical >= F.size() - 2);
   });
+}
+
+TEST_CASE("Snow's largest wave speed in lanes matches the group's scalar one",
+          "[materials][simd]") {
+  if (!simd::target_name()) {
+    WARN("no SIMD target on this CPU");
+    return;
+  }
+  // The CFL bound's wave speed of a snow group, hardened per particle by its Jp, over a range
+  // that does not fill its last lane set; the fastest particle moved around the range (the
+  // tail's lanes included) must still be the one found.
+  materials::SnowPlasticity plastic;
+  plastic.hardening = 10;
+  const std::size_t n = 203;
+  materials::SnowGroup group({3.8e5, 5.8e5}, plastic, 400, n);
+  std::mt19937 rng(13);
+  const std::vector<StoredMat3> base = samples(rng, static_cast<int>(n), 0.8, 1.2);
+  std::uniform_real_distribution<double> jp(0.6, 1.3);
+  for (Real& s : group.state()) s = jp(rng);
+  BatchModel m = group.batch_model();
+  simd::for_each_target([&](const char* target) {
+    for (std::size_t fast : {std::size_t{0}, n / 2, n - 1}) {
+      INFO("target " << target << " fastest particle " << fast);
+      std::vector<StoredMat3> F = base;
+      F[fast] = to_stored(Mat3(1.5 * Mat3::Identity()));
+      group.state()[fast] = 0.5;  // the hardest, and the most stretched
+      const Real scalar = group.max_wave_speed(F);
+      const Real lanes = simd::max_wave_speed(m, F);
+      CHECK(scalar ==
+            Approx(std::sqrt((5.8e5 + 2 * 3.8e5) * std::exp(5.0) * 1.5 * 1.5 * 1.5 * 0.5 / 400)));
+      // hn::Exp against std::exp: a few units of double's last place.
+      CHECK(std::abs(lanes - scalar) <= 1e-14 * scalar);
+      group.state()[fast] = jp(rng);
+    }
+  });
+  BatchModel corotated{BatchModel::Kind::fixed_corotated, 3.8e5, 5.8e5};
+  CHECK(simd::supports_wave_speed(m));
+  CHECK_FALSE(simd::supports_wave_speed(corotated));
 }

@@ -1,6 +1,7 @@
 #include "engine/step/simd/stress_simd.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 
 #include "materials/corotated.h"
@@ -70,6 +71,19 @@ std::size_t stress_batch(const BatchModel& model, const StoredMat3* F, const Rea
   return static_cast<std::size_t>(__builtin_popcountll(redo));
 }
 
+/// det F of double lanes `a` (column-major: a[3 c + r] = F(r, c)), in the order of Eigen's 3x3
+/// determinant, as the scalar path computes it (not lanes::determinant, whose fused MulSub
+/// rounds differently).
+template <class VD>
+HWY_INLINE VD determinant(const VD a[9]) {
+  const auto cofactor = [](VD p, VD q, VD r, VD s) {
+    return hn::Sub(hn::Mul(p, q), hn::Mul(r, s));
+  };
+  return hn::Add(hn::Sub(hn::Mul(a[0], cofactor(a[4], a[8], a[7], a[5])),
+                         hn::Mul(a[3], cofactor(a[1], a[8], a[7], a[2]))),
+                 hn::Mul(a[6], cofactor(a[1], a[5], a[4], a[2])));
+}
+
 /// Water's return map over particles [0, count), count <= kLanes: F = J^(1/3) I in double
 /// lanes. J is det F in the order of Eigen's 3x3 determinant, as the scalar path computes it
 /// (not lanes::determinant, whose fused MulSub rounds differently); the root is exp(log J / 3)
@@ -88,12 +102,7 @@ std::size_t project_water_batch(StoredMat3* F, std::size_t count) {
   for (std::size_t h = 0; h < kLanes; h += kDoubles) {
     hn::Vec<DD> a[9];  // column-major: a[3 c + r] = F(r, c)
     for (int e = 0; e < 9; ++e) a[e] = hn::Load(dd, m[e] + h);
-    const auto cofactor = [](auto p, auto q, auto r, auto s) {
-      return hn::Sub(hn::Mul(p, q), hn::Mul(r, s));
-    };
-    const hn::Vec<DD> J = hn::Add(hn::Sub(hn::Mul(a[0], cofactor(a[4], a[8], a[7], a[5])),
-                                          hn::Mul(a[3], cofactor(a[1], a[8], a[7], a[2]))),
-                                  hn::Mul(a[6], cofactor(a[1], a[5], a[4], a[2])));
+    const hn::Vec<DD> J = determinant(a);
     const auto bad = hn::Not(hn::Gt(J, hn::Zero(dd)));  // also NaN
     const hn::Vec<DD> Jsafe = hn::IfThenElse(bad, hn::Set(dd, 1.0), J);
     hn::Vec<DD> x = hn::Exp(dd, hn::Mul(hn::Log(dd, Jsafe), hn::Set(dd, 1.0 / 3)));
@@ -156,7 +165,53 @@ std::size_t project_batch(const BatchModel& model, StoredMat3* F, Real* state, s
   return static_cast<std::size_t>(__builtin_popcountll(redo));
 }
 
+/// Snow's squared wave speed, (lambda h + 2 mu h) max(|det F| Jp, 1e-6) / rho0 with the
+/// hardening h = exp(xi (1 - Jp)) (materials::Snow::wave_speed before its square root), over
+/// particles [0, count), count <= kLanes, in double lanes; the largest of them and `top`.
+/// hn::Exp is within a few units of the last place of std::exp.
+Real snow_wave_speed2_batch(const BatchModel& model, const StoredMat3* F, const Real* Jp,
+                            std::size_t count, Real top) {
+  using DD = hn::ScalableTag<double>;
+  const DD dd;
+  using VD = hn::Vec<DD>;
+  constexpr std::size_t kDoubles = HWY_LANES(double);
+  alignas(64) double m[9][kLanes], jp[kLanes];
+  for (std::size_t l = 0; l < kLanes; ++l) {  // unused lanes repeat the last particle
+    const std::size_t q = std::min(l, count - 1);
+    const StoredReal* f = F[q].data();
+    for (int e = 0; e < 9; ++e) m[e][l] = static_cast<double>(f[e]);
+    jp[l] = Jp[q];
+  }
+  const VD one = hn::Set(dd, 1.0), two = hn::Set(dd, 2.0), least = hn::Set(dd, 1e-6);
+  const VD xi = hn::Set(dd, model.hardening), mu = hn::Set(dd, model.mu),
+           lambda = hn::Set(dd, model.lambda), rho0 = hn::Set(dd, model.rho0);
+  VD most = hn::Set(dd, top);
+  for (std::size_t h = 0; h < kLanes; h += kDoubles) {
+    VD a[9];
+    for (int e = 0; e < 9; ++e) a[e] = hn::Load(dd, m[e] + h);
+    const VD j = hn::Load(dd, jp + h);
+    const VD hard = hn::Exp(dd, hn::Mul(xi, hn::Sub(one, j)));
+    const VD J = hn::Max(hn::Mul(hn::Abs(determinant(a)), j), least);
+    const VD c2 =
+        hn::Div(hn::Mul(hn::Add(hn::Mul(lambda, hard), hn::Mul(two, hn::Mul(mu, hard))), J), rho0);
+    most = hn::IfThenElse(hn::Lt(most, c2), c2, most);  // std::max(most, c2)
+  }
+  return hn::GetLane(hn::MaxOfLanes(dd, most));
+}
+
 }  // namespace
+
+Real SnowWaveSpeedImpl(const BatchModel& model, const StoredMat3* F, const Real* Jp,
+                       std::size_t n) {
+  const std::ptrdiff_t batches = static_cast<std::ptrdiff_t>((n + kLanes - 1) / kLanes);
+  Real top = 0;
+#pragma omp parallel for schedule(static) reduction(max : top) if (n >= kParallelMinItems)
+  for (std::ptrdiff_t b = 0; b < batches; ++b) {
+    const std::size_t q0 = static_cast<std::size_t>(b) * kLanes;
+    top = snow_wave_speed2_batch(model, F + q0, Jp + q0, std::min(kLanes, n - q0), top);
+  }
+  return std::sqrt(top);  // the largest root is the root of the largest square
+}
 
 std::size_t StressImpl(const BatchModel& model, const StoredMat3* F, std::size_t n, Real volume0,
                        StoredMat3* out) {
@@ -192,6 +247,7 @@ namespace mpm::simd {
 
 HWY_EXPORT(StressImpl);
 HWY_EXPORT(ProjectImpl);
+HWY_EXPORT(SnowWaveSpeedImpl);
 
 bool supports_stress(const BatchModel& model) {
   return model.kind != BatchModel::Kind::none && model.kind != BatchModel::Kind::group;
@@ -247,6 +303,15 @@ bool supports_projection(const BatchModel& model) {
 std::size_t project(const BatchModel& model, std::span<StoredMat3> F, std::span<Real> state) {
   if (F.empty()) return 0;
   return HWY_DYNAMIC_DISPATCH(ProjectImpl)(model, F.data(), state.data(), F.size());
+}
+
+bool supports_wave_speed(const BatchModel& model) {
+  return model.kind == BatchModel::Kind::snow;
+}
+
+Real max_wave_speed(const BatchModel& model, std::span<const StoredMat3> F) {
+  if (F.empty()) return 0;
+  return HWY_DYNAMIC_DISPATCH(SnowWaveSpeedImpl)(model, F.data(), model.state, F.size());
 }
 
 void project_scalar(const BatchModel& model, StoredMat3& F, Real& state) {

@@ -39,6 +39,16 @@ bool supports_projection(const BatchModel& model);
 /// count.
 std::size_t project(const BatchModel& model, std::span<StoredMat3> F, std::span<Real> state);
 
+/// True if `model` has its largest wave speed in lanes (snow: the hardening's exp per particle
+/// is most of the CFL bound's time).
+bool supports_wave_speed(const BatchModel& model);
+
+/// The largest wave speed of `model`'s group (F: the group's range; snow's Jp model.state), as
+/// MaterialGroup::max_wave_speed computes it, in double lanes: the exp of hn::Exp (within a few
+/// units of the last place of std::exp), one square root of the largest square. The same for
+/// any thread count.
+Real max_wave_speed(const BatchModel& model, std::span<const StoredMat3> F);
+
 /// The scalar double return map of `model` (snow, sand, water) on one particle's F and state.
 void project_scalar(const BatchModel& model, StoredMat3& F, Real& state);
 
