@@ -6,6 +6,7 @@
 #include <random>
 #include <tuple>
 
+#include "engine/core/radix_sort.h"
 #include "engine/step/grid.h"
 #include "engine/step/kernels.h"
 #include "engine/step/transfer.h"
@@ -288,4 +289,25 @@ TEST_CASE("grid_update with gravity folded in gives the two stages' velocities, 
   }
   Grid flip(unit_grid(8), true);
   CHECK_THROWS_AS(grid_update(flip, Vec3(0, -1, 0)), std::logic_error);
+}
+
+TEST_CASE("radix_order is the stable sort by key", "[transfers]") {
+  // Keys of one and of two radix passes, with many equal keys (whose indices must stay in
+  // order): the sparse box's particle sort and the contacts' sort rely on the stable order.
+  for (int bits : {9, 22}) {
+    const std::size_t n = 30000;
+    std::mt19937 rng(static_cast<unsigned>(bits));
+    std::uniform_int_distribution<std::uint32_t> pick(0, (1u << bits) - 1);
+    std::vector<std::uint32_t> keys(n);
+    for (auto& k : keys) k = pick(rng) % (n / 3);  // about three indices a key, or more
+    std::vector<std::uint32_t> expect(n);
+    for (std::size_t i = 0; i < n; ++i) expect[i] = static_cast<std::uint32_t>(i);
+    std::stable_sort(expect.begin(), expect.end(),
+                     [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
+    INFO("bits " << bits);
+    std::vector<std::uint32_t> order, scratch;
+    radix_order(
+        n, bits, [&](std::uint32_t i) { return keys[i]; }, order, scratch);
+    CHECK(order == expect);
+  }
 }
