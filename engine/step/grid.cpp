@@ -78,13 +78,13 @@ void update_nodes(const Vec3& dv, Grid& g) {
 
 void grid_update(Grid& g, const Vec3& gravity_dv) {
   const bool gravity = gravity_dv != Vec3::Zero();
+  if (g.flip && gravity)
+    throw std::logic_error(
+        "grid_update: gravity folded in with FLIP, whose old velocity is before it");
   if (g.float_nodes)
     gravity ? update_nodes<true, true>(gravity_dv, g) : update_nodes<true, false>(gravity_dv, g);
   else
     gravity ? update_nodes<false, true>(gravity_dv, g) : update_nodes<false, false>(gravity_dv, g);
-  if (g.flip && gravity)
-    throw std::logic_error(
-        "grid_update: gravity folded in with FLIP, whose old velocity is before it");
   if (g.flip) g.velocity_old = g.velocity;
 }
 

@@ -166,7 +166,7 @@ std::size_t project_batch(const BatchModel& model, StoredMat3* F, Real* state, s
 }
 
 /// Snow's squared wave speed, (lambda h + 2 mu h) max(|det F| Jp, 1e-6) / rho0 with the
-/// hardening h = exp(xi (1 - Jp)) (materials::Snow::wave_speed before its square root), over
+/// hardening h = exp(xi (1 - Jp)) (materials::SnowGroup::wave_speed before its square root), over
 /// particles [0, count), count <= kLanes, in double lanes; the largest of them and `top`.
 /// hn::Exp is within a few units of the last place of std::exp.
 Real snow_wave_speed2_batch(const BatchModel& model, const StoredMat3* F, const Real* Jp,
