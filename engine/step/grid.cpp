@@ -44,8 +44,8 @@ namespace mpm {
 
 namespace {
 
-/// Calls f(idx) for every stored node, in parallel: one flat loop the compiler can vectorize,
-/// with no per-node block arithmetic. The nodes of a block past the grid's last node are
+/// Calls f(idx) for every stored node, in parallel: one flat loop, with no per-node block
+/// arithmetic. The nodes of a block past the grid's last node are
 /// included: no stencil reaches them, so their sums stay the zeros clear_node_sums left, and
 /// each stage here leaves a node without mass as it was (grid_update: zero velocity).
 template <class Fn>

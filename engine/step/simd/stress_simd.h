@@ -39,8 +39,8 @@ bool supports_projection(const BatchModel& model);
 /// count.
 std::size_t project(const BatchModel& model, std::span<StoredMat3> F, std::span<Real> state);
 
-/// True if `model` has its largest wave speed in lanes (snow: the hardening's exp per particle
-/// is most of the CFL bound's time).
+/// True if `model` has its largest wave speed in lanes (snow, whose hardening takes an exp per
+/// particle).
 bool supports_wave_speed(const BatchModel& model);
 
 /// The largest wave speed of `model`'s group (F: the group's range; snow's Jp model.state), as
