@@ -13,12 +13,20 @@ Grid::Grid(const GridDesc& d, bool flip)
   slot.assign(static_cast<std::size_t>(blocks.x()) * blocks.y() * blocks.z(), -1);
 }
 
-void Grid::activate_blocks(const Vec3i& lo, const Vec3i& hi) {
+void Grid::activate_blocks(const Vec3i& lo, const Vec3i& hi, std::span<std::uint8_t> spans) {
   block_first.clear();
   for (int bi = lo.x(); bi <= hi.x(); ++bi)
     for (int bj = lo.y(); bj <= hi.y(); ++bj)
       for (int bk = lo.z(); bk <= hi.z(); ++bk) {
-        std::int32_t& s = slot[page(bi, bj, bk)];
+        const std::size_t pg = page(bi, bj, bk);
+        if (!spans.empty() && spans[pg] != 0) {
+          // This block and the next ones its bits name, which come later in this scan.
+          const int next = spans[pg] & 7;
+          spans[pg] = 0;
+          for (int d = 0; d < 8; ++d)
+            if ((d & next) == d) slot[page(bi + (d & 1), bj + (d >> 1 & 1), bk + (d >> 2 & 1))] = 0;
+        }
+        std::int32_t& s = slot[pg];
         if (s < 0) continue;
         s = static_cast<std::int32_t>(block_first.size());
         block_first.emplace_back(bi * kBlockEdge, bj * kBlockEdge, bk * kBlockEdge);

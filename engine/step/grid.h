@@ -4,6 +4,7 @@
 #include <cassert>
 #include <cstddef>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "engine/core/math.h"
@@ -72,20 +73,30 @@ struct Grid {
         if constexpr (kChecked) inside[a][t] = base[a] + t >= 0 && base[a] + t < nodes[a];
       }
     std::size_t first[2][2][2] = {};  // blocks the stencil does not reach stay 0, unused
-    for (int di = 0; di <= blk[0][N - 1]; ++di)
-      for (int dj = 0; dj <= blk[1][N - 1]; ++dj)
-        for (int dk = 0; dk <= blk[2][N - 1]; ++dk) {
-          const Vec3i b = b0 + Vec3i(di, dj, dk);
-          if constexpr (kChecked) {
+    if constexpr (kChecked) {
+      for (int di = 0; di <= blk[0][N - 1]; ++di)
+        for (int dj = 0; dj <= blk[1][N - 1]; ++dj)
+          for (int dk = 0; dk <= blk[2][N - 1]; ++dk) {
+            const Vec3i b = b0 + Vec3i(di, dj, dk);
             const bool in = (b.array() >= 0).all() && (b.array() < blocks.array()).all();
             const std::int32_t s = in ? slot[page(b.x(), b.y(), b.z())] : -1;
             first[di][dj][dk] = s < 0 ? kNoStorage : static_cast<std::size_t>(s) * kBlockNodes;
-          } else {
-            const std::int32_t s = slot[page(b.x(), b.y(), b.z())];
+          }
+    } else {
+      // All eight, each axis's second block the first again where the stencil stays in one:
+      // no loop whose trip count changes from one stencil to the next.
+      const std::int32_t* s0 = slot.data() + page(b0.x(), b0.y(), b0.z());
+      const std::ptrdiff_t step[3] = {
+          blk[0][N - 1] * static_cast<std::ptrdiff_t>(blocks.y()) * blocks.z(),
+          blk[1][N - 1] * static_cast<std::ptrdiff_t>(blocks.z()), blk[2][N - 1]};
+      for (int di = 0; di < 2; ++di)
+        for (int dj = 0; dj < 2; ++dj)
+          for (int dk = 0; dk < 2; ++dk) {
+            const std::int32_t s = s0[di * step[0] + dj * step[1] + dk * step[2]];
             assert(s >= 0 && "the sort activates every block a stencil touches");
             first[di][dj][dk] = static_cast<std::size_t>(s) * kBlockNodes;
           }
-        }
+    }
     // Each (i, j) row's start in its two z blocks, then one add per node.
     int c = 0;
     for (int i = 0; i < N; ++i)
@@ -122,8 +133,10 @@ struct Grid {
   /// Number of blocks with storage this substep.
   std::size_t active_blocks() const { return block_first.size(); }
   /// Gives storage to the blocks marked 0 in `slot` inside the block box [lo, hi] (others
-  /// must be -1), in block order, and sizes the node arrays to match.
-  void activate_blocks(const Vec3i& lo, const Vec3i& hi);
+  /// must be -1), in block order, and sizes the node arrays to match. With `spans` (one entry
+  /// per page), a block whose entry is not 0 is marked too, and so is the next block along each
+  /// axis a whose bit 1 << a the entry sets (inside the box); the entries are reset to 0.
+  void activate_blocks(const Vec3i& lo, const Vec3i& hi, std::span<std::uint8_t> spans = {});
   /// Returns every active block to -1 in the page table.
   void release_blocks();
 };

@@ -130,6 +130,58 @@ void radix_sort(std::size_t cells, ParticleOrder& ord) {
       [&](std::uint32_t i) { return keys[i]; }, ord.order, ord.scratch);
 }
 
+/// The keys of a sparse box, and the marks of the blocks each stencil (widened by `reach`)
+/// touches. Each thread keys its own contiguous part a chunk at a time: keys and bases in
+/// double lanes if `lanes` (simd::cell_keys, which needs the keys below 2^31), the rest one by
+/// one, then the marks of each stencil whose blocks differ from the particle's before it. A
+/// stencil that spans at most two blocks per axis (`narrow`) sets one byte of ord.spans, its
+/// first block's, naming the axes along which it reaches the next block; activate_blocks
+/// widens it, so no loop runs over the blocks per particle.
+template <Kernel K, class Key>
+void key_sparse(const Particles& p, bool lanes, const Key& key, int reach, Grid& grid,
+                ParticleOrder& ord) {
+  const std::size_t n = p.size();
+  std::vector<std::uint32_t>& keys = ord.keys;
+  const bool narrow = KernelTraits<K>::kNodes + 2 * reach <= Grid::kBlockEdge + 1;
+  if (narrow) ord.spans.resize(grid.slot.size());
+#pragma omp parallel if (static_cast <long>(n) >= kParallelMinItems)
+  {
+    const std::size_t team = static_cast<std::size_t>(omp_get_num_threads());
+    const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
+    constexpr std::size_t kChunk = 256;
+    std::int32_t bases[3 * kChunk];
+    std::pair<Vec3i, Vec3i> marked(Vec3i::Zero(), -Vec3i::Ones());
+    std::uint64_t marked_span = 0;
+    for (std::size_t c0 = n * t / team, last = n * (t + 1) / team; c0 < last; c0 += kChunk) {
+      const std::size_t c1 = std::min(last, c0 + kChunk);
+      std::size_t i = c0;
+      if (lanes) i += simd::cell_keys(p, K, grid, ord.lo, ord.ext, c0, c1, keys.data(), bases);
+      for (; i < c1; ++i) {
+        const Vec3i base = stencil_base<K>(p.x[i], grid.origin, grid.inv_h);
+        keys[i] = key(base);
+        for (int a = 0; a < 3; ++a) bases[3 * (i - c0) + a] = base[a];
+      }
+      for (i = c0; i < c1; ++i) {
+        const std::int32_t* b = bases + 3 * (i - c0);
+        const std::pair<Vec3i, Vec3i> blocks = stencil_blocks<K>(Vec3i(b[0], b[1], b[2]), reach);
+        if (!narrow) {
+          if (blocks != marked) mark_blocks(blocks, grid);
+          marked = blocks;
+          continue;
+        }
+        const auto& [first, end] = blocks;
+        const std::size_t pg = grid.page(first.x(), first.y(), first.z());
+        const auto span = static_cast<std::uint8_t>(
+            8 | (end.x() > first.x()) | (end.y() > first.y()) << 1 | (end.z() > first.z()) << 2);
+        const std::uint64_t mark = pg << 4 | span;
+        if (mark != marked_span)
+          std::atomic_ref<std::uint8_t>(ord.spans[pg]).fetch_or(span, std::memory_order_relaxed);
+        marked_span = mark;
+      }
+    }
+  }
+}
+
 /// Sorts by the base cell of kernel K's stencil (dispatched once, not per particle), activates
 /// the blocks the stencils touch and places the slabs.
 template <Kernel K>
@@ -174,20 +226,8 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord, int reach)
     counting_sort<K>(cells, keys_of, reach, ord, grid);
   } else {
     // A box of more than two cells per particle (a body broken into dust): passes over the
-    // cells would cost more than the particles. Each particle whose stencil's blocks differ
-    // from the particle's before it marks them, and the radix sort orders the keys.
-#pragma omp parallel if (count >= kParallelMinItems)
-    {
-      std::pair<Vec3i, Vec3i> marked(Vec3i::Zero(), -Vec3i::Ones());
-#pragma omp for schedule(static)
-      for (std::ptrdiff_t i = 0; i < count; ++i) {
-        const Vec3i base = stencil_base<K>(p.x[i], origin, inv_h);
-        keys[i] = key(base);
-        const std::pair<Vec3i, Vec3i> blocks = stencil_blocks<K>(base, reach);
-        if (blocks != marked) mark_blocks(blocks, grid);
-        marked = blocks;
-      }
-    }
+    // cells would cost more than the particles. The radix sort orders the keys.
+    key_sparse<K>(p, cells < (std::size_t{1} << 31), key, reach, grid, ord);
     radix_sort(cells, ord);
     ord.counts.clear();  // no cell offsets: scatters find a cell's run by its keys
   }
@@ -195,7 +235,7 @@ void sort_by_cell(const Particles& p, Grid& grid, ParticleOrder& ord, int reach)
   const Vec3i bottom = lo - Vec3i::Constant(reach);
   constexpr int B = Grid::kBlockBits;
   grid.activate_blocks(Vec3i(bottom.x() >> B, bottom.y() >> B, bottom.z() >> B),
-                       Vec3i(top.x() >> B, top.y() >> B, top.z() >> B));
+                       Vec3i(top.x() >> B, top.y() >> B, top.z() >> B), ord.spans);
 
   // Slab boundaries at x-planes of cells, each slab at least `width` planes thick, placed
   // where the count of particles before them is nearest above s n / slabs: the slabs of a

@@ -41,6 +41,9 @@ struct ParticleOrder {
   /// The sort's scratch: the counting sort's next place in `order` per thread and cell, or
   /// the radix sort's second array.
   std::vector<std::uint32_t> scratch;
+  /// The sparse sort's marks, one per page of the grid (Grid::activate_blocks' `spans`); all
+  /// zero between sorts.
+  std::vector<std::uint8_t> spans;
 };
 
 /// Runs f(s) for every slab s of `order`, in parallel from `parallel_from` particles: the even

@@ -259,7 +259,7 @@ TEST_CASE("SIMD and scalar particle-to-grid agree for particles on cells' halves
   }
 }
 
-TEST_CASE("SIMD sort keys are the scalar sort's, on cells' halves and nodes too",
+TEST_CASE("SIMD sort keys and bases are the scalar sort's, on cells' halves and nodes too",
           "[transfers][simd][sort]") {
   if (!simd::target_name()) {
     WARN("no SIMD target on this CPU");
@@ -283,11 +283,12 @@ TEST_CASE("SIMD sort keys are the scalar sort's, on cells' halves and nodes too"
         INFO("grid origin at " << j << "/8 of a cell, target " << target << ", kernel "
                                << static_cast<int>(kernel));
         std::vector<std::uint32_t> keys(p.size(), ~0u);
+        std::vector<std::int32_t> bases(3 * p.size(), -7);
         const std::size_t first = 3;  // not on a lane set's start
         const std::size_t done =
-            simd::cell_keys(p, kernel, g, lo, ext, first, p.size(), keys.data());
+            simd::cell_keys(p, kernel, g, lo, ext, first, p.size(), keys.data(), bases.data());
         CHECK(done >= p.size() - first - 16);
-        std::size_t wrong = 0;
+        std::size_t wrong = 0, wrong_base = 0;
         for (std::size_t q = first; q < first + done; ++q) {
           Vec3i b;
           dispatch_kernel(kernel,
@@ -295,8 +296,11 @@ TEST_CASE("SIMD sort keys are the scalar sort's, on cells' halves and nodes too"
           const Vec3i k = b - lo;
           wrong +=
               keys[q] != static_cast<std::uint32_t>((k.x() * ext.y() + k.y()) * ext.z() + k.z());
+          for (int a = 0; a < 3; ++a) wrong_base += bases[3 * (q - first) + a] != b[a];
         }
         CHECK(wrong == 0);
+        CHECK(wrong_base == 0);
+        CHECK(bases[3 * done] == -7);   // no base past what it did
         CHECK(keys[first - 1] == ~0u);  // nothing before `first` written
         if (first + done < p.size()) CHECK(keys[first + done] == ~0u);  // nor after what it did
       }

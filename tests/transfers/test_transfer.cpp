@@ -175,9 +175,10 @@ TEST_CASE("the stress impulse scattered with the momentum equals the force appli
 namespace {
 
 /// Checks `ord` against the stable sort by stencil base cell (ties by index) of kernel K,
-/// the blocks of every stencil active, and slabs that start on x-planes of cells.
+/// the blocks of every stencil widened by `reach` nodes active, and slabs that start on
+/// x-planes of cells.
 template <Kernel K>
-void check_sorted(const Particles& p, const Grid& g, const ParticleOrder& ord) {
+void check_sorted(const Particles& p, const Grid& g, const ParticleOrder& ord, int reach) {
   constexpr int N = KernelTraits<K>::kNodes;
   const std::size_t n = p.size();
   std::vector<Vec3i> base(n);
@@ -193,9 +194,9 @@ void check_sorted(const Particles& p, const Grid& g, const ParticleOrder& ord) {
   std::size_t inactive = 0;
   for (std::size_t i = 0; i < n; ++i) {
     CHECK(ord.cell_base(ord.keys[i]) == base[i]);
-    for (int a = 0; a < N; ++a)
-      for (int b = 0; b < N; ++b)
-        for (int c = 0; c < N; ++c) {
+    for (int a = -reach; a < N + reach; ++a)
+      for (int b = -reach; b < N + reach; ++b)
+        for (int c = -reach; c < N + reach; ++c) {
           const Vec3i node = base[i] + Vec3i(a, b, c);
           inactive += g.slot[g.page(node.x() >> Grid::kBlockBits, node.y() >> Grid::kBlockBits,
                                     node.z() >> Grid::kBlockBits)] < 0;
@@ -225,10 +226,11 @@ TEST_CASE(
     double lo, hi;      ///< Where they are spread, a fraction of the grid per axis.
   };
   const Cloud clouds[] = {
-      {16, 3000, 0.3, 0.7},     // 2^3 cells of the box per particle: the counting sort
-      {12, 100, 0.2, 0.8},      // about 700 cells, 10 bits: the radix sort in one pass
-      {96, 3000, 0.05, 0.95},   // about 200 per particle, 20 bits: two passes
-      {200, 3000, 0.05, 0.95},  // 180^3 cells, 23 bits: three passes
+      {16, 3000, 0.3, 0.7},      // 2^3 cells of the box per particle: the counting sort
+      {12, 100, 0.2, 0.8},       // about 700 cells, 10 bits: the radix sort in one pass
+      {96, 3000, 0.05, 0.95},    // about 200 per particle, 20 bits: two passes
+      {200, 3000, 0.05, 0.95},   // 180^3 cells, 23 bits: three passes
+      {200, 20000, 0.05, 0.95},  // the same on the threads, each keying its own part
   };
   std::mt19937 rng(11);
   for (const Cloud& cloud : clouds)
@@ -252,11 +254,12 @@ TEST_CASE(
         const int a = axis(rng);
         y[a] = std::clamp(y[a] + cells_by(rng) * g.h[a], 0.2, 0.8);
       }
-      for (Kernel kernel : kAllKernels) {
-        INFO("kernel " << static_cast<int>(kernel));
-        sort_particles(p, kernel, g, ord);
-        dispatch_kernel(kernel, [&]<Kernel K>() { check_sorted<K>(p, g, ord); });
-      }
+      for (Kernel kernel : kAllKernels)
+        for (int reach : {0, 1}) {  // the cubic kernel with reach 1 spans three blocks per axis
+          INFO("kernel " << static_cast<int>(kernel) << ", reach " << reach);
+          sort_particles(p, kernel, g, ord, reach);
+          dispatch_kernel(kernel, [&]<Kernel K>() { check_sorted<K>(p, g, ord, reach); });
+        }
     }
 }
 

@@ -32,7 +32,7 @@ void GatherImpl(const Grid&, Transfer, Kernel, Real, Particles&, AdvectStats*) {
 void GatherRangeImpl(const Grid&, Transfer, Kernel, Real, Particles&, std::size_t, std::size_t,
                      AdvectStats*) {}
 std::size_t CellKeysImpl(const Particles&, Kernel, const Grid&, const Vec3i&, const Vec3i&,
-                         std::size_t, std::size_t, std::uint32_t*) {
+                         std::size_t, std::size_t, std::uint32_t*, std::int32_t*) {
   return 0;
 }
 const char* TargetImpl() {
@@ -1106,17 +1106,20 @@ void gather_all(const Grid& g, Real dt, Particles& p, AdvectStats* advect) {
 /// cell_keys with kernel K: the keys of whole lane sets of particles from `first`.
 template <Kernel K>
 std::size_t cell_keys(const Particles& p, const Grid& g, const Vec3i& lo, const Vec3i& ext,
-                      std::size_t first, std::size_t last, std::uint32_t* keys) {
+                      std::size_t first, std::size_t last, std::uint32_t* keys,
+                      std::int32_t* bases) {
   const DD dd;
   const hn::Rebind<std::int32_t, DD> di32;
   const std::size_t L = hn::Lanes(dd), end = first + (last - first) / L * L;
   for (std::size_t q = first; q < end; q += L) {
     VD x[3], corner, base[3];
     hn::LoadInterleaved3(dd, p.x[q].data(), x[0], x[1], x[2]);
-    for (int a = 0; a < 3; ++a) {
-      stencil_lanes<K>(dd, x[a], g, a, corner, base[a]);
-      base[a] = hn::Sub(base[a], hn::Set(dd, lo[a]));  // small integers: exact in double
-    }
+    for (int a = 0; a < 3; ++a) stencil_lanes<K>(dd, x[a], g, a, corner, base[a]);
+    if (bases)
+      hn::StoreInterleaved3(hn::DemoteTo(di32, base[0]), hn::DemoteTo(di32, base[1]),
+                            hn::DemoteTo(di32, base[2]), di32, bases + 3 * (q - first));
+    for (int a = 0; a < 3; ++a)  // small integers: exact in double
+      base[a] = hn::Sub(base[a], hn::Set(dd, lo[a]));
     // (k_x ext_y + k_y) ext_z + k_z, below 2^31 (cells <= 2 n): exact in double.
     const VD key = hn::Add(
         hn::Mul(hn::Add(hn::Mul(base[0], hn::Set(dd, ext.y())), base[1]), hn::Set(dd, ext.z())),
@@ -1168,11 +1171,11 @@ void GatherRangeImpl(const Grid& g, Transfer t, Kernel k, Real dt, Particles& p,
 }
 
 std::size_t CellKeysImpl(const Particles& p, Kernel kernel, const Grid& g, const Vec3i& lo,
-                         const Vec3i& ext, std::size_t first, std::size_t last,
-                         std::uint32_t* keys) {
+                         const Vec3i& ext, std::size_t first, std::size_t last, std::uint32_t* keys,
+                         std::int32_t* bases) {
   std::size_t done = 0;
-  dispatch_kernel(kernel,
-                  [&]<Kernel K>() { done = cell_keys<K>(p, g, lo, ext, first, last, keys); });
+  dispatch_kernel(
+      kernel, [&]<Kernel K>() { done = cell_keys<K>(p, g, lo, ext, first, last, keys, bases); });
   return done;
 }
 
@@ -1229,8 +1232,9 @@ void gather_range(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, P
 }
 
 std::size_t cell_keys(const Particles& p, Kernel kernel, const Grid& grid, const Vec3i& lo,
-                      const Vec3i& ext, std::size_t first, std::size_t last, std::uint32_t* keys) {
-  return HWY_DYNAMIC_DISPATCH(CellKeysImpl)(p, kernel, grid, lo, ext, first, last, keys);
+                      const Vec3i& ext, std::size_t first, std::size_t last, std::uint32_t* keys,
+                      std::int32_t* bases) {
+  return HWY_DYNAMIC_DISPATCH(CellKeysImpl)(p, kernel, grid, lo, ext, first, last, keys, bases);
 }
 
 const char* target_name() {

@@ -55,9 +55,11 @@ inline constexpr std::size_t kGatherAlign = 64;
 /// `lo`, in a box of `ext` cells, x slowest, in double lanes with make_stencil's operations
 /// (the same values). The box must hold every base and fewer than 2^31 cells. Writes whole
 /// lane sets from `first` and returns how many particles it did (0 without a SIMD target);
-/// the caller keys the rest.
+/// the caller keys the rest. With `bases`, particle q's stencil base (not less `lo`) also goes
+/// to bases[3 (q - first) + axis].
 std::size_t cell_keys(const Particles& p, Kernel kernel, const Grid& grid, const Vec3i& lo,
-                      const Vec3i& ext, std::size_t first, std::size_t last, std::uint32_t* keys);
+                      const Vec3i& ext, std::size_t first, std::size_t last, std::uint32_t* keys,
+                      std::int32_t* bases = nullptr);
 
 /// Name of the instruction set the dispatch chose on this machine, e.g. "AVX3", or nullptr
 /// if it has none the SIMD path can use (then the scalar path runs).
