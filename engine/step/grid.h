@@ -73,30 +73,20 @@ struct Grid {
         if constexpr (kChecked) inside[a][t] = base[a] + t >= 0 && base[a] + t < nodes[a];
       }
     std::size_t first[2][2][2] = {};  // blocks the stencil does not reach stay 0, unused
-    if constexpr (kChecked) {
-      for (int di = 0; di <= blk[0][N - 1]; ++di)
-        for (int dj = 0; dj <= blk[1][N - 1]; ++dj)
-          for (int dk = 0; dk <= blk[2][N - 1]; ++dk) {
-            const Vec3i b = b0 + Vec3i(di, dj, dk);
+    for (int di = 0; di <= blk[0][N - 1]; ++di)
+      for (int dj = 0; dj <= blk[1][N - 1]; ++dj)
+        for (int dk = 0; dk <= blk[2][N - 1]; ++dk) {
+          const Vec3i b = b0 + Vec3i(di, dj, dk);
+          if constexpr (kChecked) {
             const bool in = (b.array() >= 0).all() && (b.array() < blocks.array()).all();
             const std::int32_t s = in ? slot[page(b.x(), b.y(), b.z())] : -1;
             first[di][dj][dk] = s < 0 ? kNoStorage : static_cast<std::size_t>(s) * kBlockNodes;
-          }
-    } else {
-      // All eight, each axis's second block the first again where the stencil stays in one:
-      // no loop whose trip count changes from one stencil to the next.
-      const std::int32_t* s0 = slot.data() + page(b0.x(), b0.y(), b0.z());
-      const std::ptrdiff_t step[3] = {
-          blk[0][N - 1] * static_cast<std::ptrdiff_t>(blocks.y()) * blocks.z(),
-          blk[1][N - 1] * static_cast<std::ptrdiff_t>(blocks.z()), blk[2][N - 1]};
-      for (int di = 0; di < 2; ++di)
-        for (int dj = 0; dj < 2; ++dj)
-          for (int dk = 0; dk < 2; ++dk) {
-            const std::int32_t s = s0[di * step[0] + dj * step[1] + dk * step[2]];
+          } else {
+            const std::int32_t s = slot[page(b.x(), b.y(), b.z())];
             assert(s >= 0 && "the sort activates every block a stencil touches");
             first[di][dj][dk] = static_cast<std::size_t>(s) * kBlockNodes;
           }
-    }
+        }
     // Each (i, j) row's start in its two z blocks, then one add per node.
     int c = 0;
     for (int i = 0; i < N; ++i)
