@@ -141,10 +141,11 @@ template <Kernel K, class Key>
 void key_sparse(const Particles& p, bool lanes, const Key& key, int reach, Grid& grid,
                 ParticleOrder& ord) {
   const std::size_t n = p.size();
+  const long count = static_cast<long>(n);
   std::vector<std::uint32_t>& keys = ord.keys;
   const bool narrow = KernelTraits<K>::kNodes + 2 * reach <= Grid::kBlockEdge + 1;
   if (narrow) ord.spans.resize(grid.slot.size());
-#pragma omp parallel if (static_cast <long>(n) >= kParallelMinItems)
+#pragma omp parallel if (count >= kParallelMinItems)
   {
     const std::size_t team = static_cast<std::size_t>(omp_get_num_threads());
     const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
