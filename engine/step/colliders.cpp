@@ -28,21 +28,22 @@ class LevelSetGrid {
     step_ = 0.5 * grid_->voxelSize()[0];
   }
 
+  /// The accessor sample() and phi() take: it keeps the tree nodes of the last lookup, so that
+  /// a point near the last one is found without a walk from the root.
+  using Accessor = openvdb::FloatGrid::ConstUnsafeAccessor;
+
+  /// A new accessor of the level set (one per thread: it is not thread-safe).
+  Accessor accessor() const { return grid_->getConstUnsafeAccessor(); }
+
   /// Trilinear phi (OpenVDB BoxSampler) and its gradient by central differences half a voxel
-  /// apart, at world point x. Thread-safe: each call uses its own unregistered accessor.
-  SdfSample sample(const Vec3& x) const {
-    auto acc = grid_->getConstUnsafeAccessor();
-    const openvdb::math::Transform& xf = grid_->transform();
-    auto phi_at = [&](const Vec3& p) {
-      const openvdb::Vec3d ijk = xf.worldToIndex(openvdb::Vec3d(p.x(), p.y(), p.z()));
-      return static_cast<Real>(openvdb::tools::BoxSampler::sample(acc, ijk));
-    };
+  /// apart, at world point x.
+  SdfSample sample(const Vec3& x, Accessor& acc) const {
     SdfSample s;
-    s.phi = phi_at(x);
+    s.phi = phi(x, acc);
     Vec3 grad;
     for (int a = 0; a < 3; ++a) {
       const Vec3 e = step_ * Vec3::Unit(a);
-      grad[a] = (phi_at(x + e) - phi_at(x - e)) / (2 * step_);
+      grad[a] = (phi(x + e, acc) - phi(x - e, acc)) / (2 * step_);
     }
     const Real norm = grad.norm();
     s.normal = norm > 1e-6 ? Vec3(grad / norm) : Vec3::Zero();
@@ -50,10 +51,21 @@ class LevelSetGrid {
   }
 
   /// Trilinear phi alone at world point x.
-  Real phi(const Vec3& x) const {
-    auto acc = grid_->getConstUnsafeAccessor();
+  Real phi(const Vec3& x, Accessor& acc) const {
     const openvdb::Vec3d ijk = grid_->transform().worldToIndex(openvdb::Vec3d(x.x(), x.y(), x.z()));
     return static_cast<Real>(openvdb::tools::BoxSampler::sample(acc, ijk));
+  }
+
+  /// sample() with an accessor of its own (thread-safe).
+  SdfSample sample(const Vec3& x) const {
+    Accessor acc = accessor();
+    return sample(x, acc);
+  }
+
+  /// phi() with an accessor of its own (thread-safe).
+  Real phi(const Vec3& x) const {
+    Accessor acc = accessor();
+    return phi(x, acc);
   }
 
   /// World box of the active voxels, m.
@@ -198,6 +210,25 @@ SdfSample Collider::sample(const Vec3& x0) const {
 
 Real Collider::phi(const Vec3& x0) const {
   return level_set ? level_set->phi(x0) : (x0 - center).norm() - radius;
+}
+
+/// The accessor a probe keeps (none for a sphere).
+struct ColliderProbe::Cache {
+  LevelSetGrid::Accessor acc;  ///< The level set's accessor.
+};
+
+ColliderProbe::ColliderProbe(const Collider& collider) : c_(collider) {
+  if (c_.level_set) cache_ = std::make_unique<Cache>(Cache{c_.level_set->accessor()});
+}
+
+ColliderProbe::~ColliderProbe() = default;
+
+SdfSample ColliderProbe::sample(const Vec3& x0) {
+  return cache_ ? c_.level_set->sample(x0, cache_->acc) : c_.sample(x0);
+}
+
+Real ColliderProbe::phi(const Vec3& x0) {
+  return cache_ ? c_.level_set->phi(x0, cache_->acc) : c_.phi(x0);
 }
 
 ColliderPose Collider::pose(Real t) const {

@@ -61,6 +61,28 @@ struct Collider {
   Real distance(const Vec3& x, Real t) const { return phi(pose(t).to_rest(x)); }
 };
 
+/// Samples one collider's signed distance point after point, keeping the level set's last tree
+/// nodes between calls (an OpenVDB accessor), so that a point near the last one is found
+/// without a walk from the tree's root: the same values as Collider::sample and phi. Not
+/// thread-safe: one per thread.
+class ColliderProbe {
+ public:
+  /// A probe of `collider`, which must outlive it.
+  explicit ColliderProbe(const Collider& collider);
+  ~ColliderProbe();
+  ColliderProbe(const ColliderProbe&) = delete;
+  ColliderProbe& operator=(const ColliderProbe&) = delete;
+  /// Collider::sample at x0.
+  SdfSample sample(const Vec3& x0);
+  /// Collider::phi at x0, m.
+  Real phi(const Vec3& x0);
+
+ private:
+  struct Cache;  // the accessor (colliders.cpp), so that OpenVDB stays out of headers
+  const Collider& c_;
+  std::unique_ptr<Cache> cache_;
+};
+
 /// Builds the colliders among `walls` (mesh, sphere and vdb walls; planes and boxes are
 /// skipped). A mesh becomes a level set with voxels of `voxel` m (OpenVDB meshToVolume).
 /// Throws SceneError at the wall's key for an unreadable, empty or open mesh, a missing VDB

@@ -74,34 +74,13 @@ struct ParticleRadius {
 /// point is a mean of those nodes').
 struct GridSpeed {
   const Grid& g;  ///< The grid.
-  /// Per storage slot, [2 a] the largest velocity component along +a of its nodes with mass
-  /// and [2 a + 1] along -a (at least 0), m/s.
-  /// Not zeroed when made: the constructor writes every slot.
-  std::unique_ptr<std::array<Real, 6>[]> block;
-  Real fastest = 0;  ///< The largest speed of any node with mass, m/s.
+  BlockSpeeds own;  ///< The grid's block speeds made here, if the caller had none.
+  /// The block speeds: the caller's (grid_update's, with no velocity changed since) or own.
+  const BlockSpeeds& speeds;
 
-  /// The block maxima of `grid`, in parallel over its blocks.
-  explicit GridSpeed(const Grid& grid)
-      : g(grid), block(new std::array<Real, 6>[grid.active_blocks()]) {
-    const std::ptrdiff_t nb = static_cast<std::ptrdiff_t>(grid.active_blocks());
-    const bool par = nb * Grid::kBlockNodes >= kParallelMinItems;
-    Real squared = 0;
-#pragma omp parallel for schedule(static) reduction(max : squared) if (par)
-    for (std::ptrdiff_t b = 0; b < nb; ++b) {
-      std::array<Real, 6> most{};
-      for (std::ptrdiff_t i = b * Grid::kBlockNodes; i < (b + 1) * Grid::kBlockNodes; ++i) {
-        if (!(g.mass[i] > 0)) continue;
-        const Vec3& v = g.velocity[i];
-        for (int a = 0; a < 3; ++a) {
-          most[2 * a] = std::max(most[2 * a], v[a]);
-          most[2 * a + 1] = std::max(most[2 * a + 1], -v[a]);
-        }
-        squared = std::max(squared, v.squaredNorm());
-      }
-      block[b] = most;
-    }
-    fastest = std::sqrt(squared);
-  }
+  /// The block speeds `given`, or else those of `grid` (block_speeds).
+  GridSpeed(const Grid& grid, const BlockSpeeds* given)
+      : g(grid), own(given ? BlockSpeeds{} : block_speeds(grid)), speeds(given ? *given : own) {}
   /// The blocks of a caller's last near() and their bound (one per thread).
   struct Last {
     Vec3i lo = Vec3i::Constant(-1), hi = Vec3i::Constant(-2);  ///< No blocks.
@@ -145,7 +124,7 @@ struct GridSpeed {
           if (s < 0) continue;
           Real closing = 0;
           for (int a = 0; a < 3; ++a)
-            closing += std::abs(n[a]) * block[s][n[a] > 0 ? 2 * a + 1 : 2 * a];
+            closing += std::abs(n[a]) * speeds.block[s][n[a] > 0 ? 2 * a + 1 : 2 * a];
           fastest_in = std::max(fastest_in, closing);
         }
     return fastest_in;
@@ -1271,7 +1250,7 @@ template <Kernel K>
 void find_contacts_with(const std::vector<WallPlane>& planes,
                         const std::vector<Collider>& colliders, Real time, Real dt,
                         const Particles& p, const Grid& g, const std::vector<IndexRange>* only,
-                        ContactState& st) {
+                        const BlockSpeeds* speeds, ContactState& st) {
   const IndexRange everything{0, p.size()};
   const std::span<const IndexRange> search =
       only ? std::span<const IndexRange>(*only) : std::span<const IndexRange>(&everything, 1);
@@ -1281,8 +1260,8 @@ void find_contacts_with(const std::vector<WallPlane>& planes,
   // interpolated from its nodes (keep_acting_contacts), a mean of node velocities: no farther
   // than dt times the fastest node plus the wall's speed, and never a cell.
   const Real cell = g.h.maxCoeff();
-  const GridSpeed speed(g);
-  const Real fastest = speed.fastest;
+  const GridSpeed speed(g, speeds);
+  const Real fastest = speed.speeds.fastest;
   const auto travel = [&](Real wall_speed) { return std::min(cell, dt * (fastest + wall_speed)); };
   const ParticleRadius particle_radius{p, radius, st.rest_depth};
   const Real widest = particle_radius.widest();
@@ -1333,12 +1312,13 @@ void find_contacts_with(const std::vector<WallPlane>& planes,
     find_contacts(
         particle_radius, speed, dt, {{c.boundary, c.friction, cell, wall++}}, search,
         [&](std::ptrdiff_t first, std::ptrdiff_t last, const std::vector<Real>& most, auto&& keep) {
+          ColliderProbe probe(c);  // the chunk's particles lie in cell order: nearby lookups
           for (std::ptrdiff_t q = first; q < last; ++q) {
             const Vec3& x = p.x[q];
             if (!near.contains(x)) continue;
             const Vec3 x0 = now.to_rest(x);
-            if (c.phi(x0) >= most[0]) continue;  // the normal only where needed
-            const SdfSample s = c.sample(x0);
+            if (probe.phi(x0) >= most[0]) continue;  // the normal only where needed
+            const SdfSample s = probe.sample(x0);
             if (s.normal.squaredNorm() == 0) continue;
             const Vec3 normal = now.rotation * s.normal;
             keep(q, 0, WallHit{s.phi, normal, next.velocity_at(x), x - s.phi * normal});
@@ -1354,17 +1334,18 @@ void find_contacts_with(const std::vector<WallPlane>& planes,
 
 void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
                    Kernel kernel, Real time, Real dt, const Particles& p, const Grid& g,
-                   ContactState& st, const std::vector<IndexRange>* search) {
+                   ContactState& st, const std::vector<IndexRange>* search,
+                   const BlockSpeeds* speeds) {
   dispatch_kernel(kernel, [&]<Kernel K>() {
-    find_contacts_with<K>(planes, colliders, time, dt, p, g, search, st);
+    find_contacts_with<K>(planes, colliders, time, dt, p, g, search, speeds, st);
   });
 }
 
 Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
                    const ContactSettings& settings, Kernel kernel, Real time, Real dt,
                    const Particles& p, Grid& g, ContactState& st, ContactMemory& memory,
-                   const std::vector<IndexRange>* search) {
-  find_contacts(planes, colliders, kernel, time, dt, p, g, st, search);
+                   const std::vector<IndexRange>* search, const BlockSpeeds* speeds) {
+  find_contacts(planes, colliders, kernel, time, dt, p, g, st, search, speeds);
   if (st.size() == 0) {
     memory.keep({}, {}, {}, dt);
     return 0;

@@ -149,10 +149,13 @@ struct IndexRange {
 /// in a substep), with the wall's normal, velocity at time + dt and condition, and their
 /// stencils' nodes and weights; `state` then holds the contacts and their nodes' velocities.
 /// Only the particles of `search` are looked at (all if it is null): the caller vouches that
-/// no other is within reach (contact_chunks).
+/// no other is within reach (contact_chunks). `speeds`, if given, are the grid's block speeds
+/// as grid_update left them, and the caller vouches that no velocity has changed since; else
+/// they are made from the grid.
 void find_contacts(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
                    Kernel kernel, Real time, Real dt, const Particles& particles, const Grid& grid,
-                   ContactState& state, const std::vector<IndexRange>* search = nullptr);
+                   ContactState& state, const std::vector<IndexRange>* search = nullptr,
+                   const BlockSpeeds* speeds = nullptr);
 
 /// Solves the walls' conditions at the contacts on `state`'s node velocities (sorted by wall
 /// and particle id first, and those sharing a stencil and wall merged): sticky, the
@@ -171,7 +174,8 @@ void write_contact_velocities(const ContactState& state, Grid& grid);
 Real apply_contact(const std::vector<WallPlane>& planes, const std::vector<Collider>& colliders,
                    const ContactSettings& settings, Kernel kernel, Real time, Real dt,
                    const Particles& particles, Grid& grid, ContactState& state,
-                   ContactMemory& memory, const std::vector<IndexRange>* search = nullptr);
+                   ContactMemory& memory, const std::vector<IndexRange>* search = nullptr,
+                   const BlockSpeeds* speeds = nullptr);
 
 /// For each run of `chunk` consecutive particles (the last one shorter), whether the contact
 /// at time `time` or the domain boundary (its `layers`) may involve it: 1 where find_contacts

@@ -1,6 +1,7 @@
 #pragma once
 /// \file The background grid: sparse 4^3-node blocks where the particles are.
 
+#include <array>
 #include <cassert>
 #include <cstddef>
 #include <cstdint>
@@ -161,9 +162,22 @@ void for_each_active_node(const Grid& g, Fn&& f) {
 
 namespace mpm {
 
+/// How fast the nodes of each storage block move: what the contact search bounds a particle's
+/// closing speed with (contact.cpp, GridSpeed).
+struct BlockSpeeds {
+  /// Per storage slot, [2 a] the largest velocity component along +a of its nodes with mass
+  /// and [2 a + 1] along -a (at least 0), m/s.
+  std::vector<std::array<Real, 6>> block;
+  Real fastest = 0;  ///< The largest speed of any node with mass, m/s.
+};
+
+/// The block speeds of `grid`'s velocities as they are, in parallel over its blocks.
+BlockSpeeds block_speeds(const Grid& grid);
+
 /// Momentum to velocity, v_i = (m v)_i / m_i, then v_i += gravity_dv on nodes with mass (gravity
-/// folded into the same pass over the nodes); keeps a copy in velocity_old for FLIP.
-void grid_update(Grid& grid, const Vec3& gravity_dv = Vec3::Zero());
+/// folded into the same pass over the nodes); keeps a copy in velocity_old for FLIP. If
+/// `speeds` is given, also sets it to block_speeds of the new velocities, in the same pass.
+void grid_update(Grid& grid, const Vec3& gravity_dv = Vec3::Zero(), BlockSpeeds* speeds = nullptr);
 
 /// v_i += dt f_i / m_i: the internal forces particles_to_grid scattered for FLIP.
 void apply_stress_forces(Real dt, Grid& grid);

@@ -368,8 +368,9 @@ void Simulation::add_boundary_stages() {
       // grid_to_particles gathers the rest.
       if (!domain_) {
         const auto contact = [&](const std::vector<IndexRange>* search) {
-          wall_work_ += apply_contact(walls_, colliders_, contact_settings, kernel, time_, dt,
-                                      particles_, grid_, contact_, contact_memory_, search);
+          wall_work_ +=
+              apply_contact(walls_, colliders_, contact_settings, kernel, time_, dt, particles_,
+                            grid_, contact_, contact_memory_, search, speeds_for_contact_);
         };
         const bool split =
             sd.simd && sd.quadrature != Quadrature::domain &&
@@ -469,11 +470,18 @@ void Simulation::build_stages() {
   // Gravity in the same pass over the nodes as the momentum's division, except for FLIP, whose
   // old velocity is the one before every force.
   const bool gravity = s.gravity.squaredNorm() > 0, flip = s.transfer == Transfer::flip;
+  // The contact search bounds closing speeds by the block speeds, which the update can set in
+  // its own pass where the contact stage comes next (one rank, no FLIP forces, no damping).
+  const bool contact_next = s.contact == Contact::particles && !domain_ && !flip &&
+                            !(s.damping > 0) && (!walls_.empty() || !colliders_.empty());
+  speeds_for_contact_ = contact_next ? &block_speeds_ : nullptr;
   if (gravity && !flip)
-    add_stage("grid_update_gravity",
-              [this](Real dt) { grid_update(grid_, dt * scene_.simulation.gravity); });
+    add_stage("grid_update_gravity", [this](Real dt) {
+      grid_update(grid_, dt * scene_.simulation.gravity, speeds_for_contact_);
+    });
   else
-    add_stage("grid_update", [this](Real) { grid_update(grid_); });
+    add_stage("grid_update",
+              [this](Real) { grid_update(grid_, Vec3::Zero(), speeds_for_contact_); });
   // PIC and APIC scatter the stress force as an impulse (see particles_to_grid).
   if (flip) add_stage("stress_forces", [this](Real dt) { apply_stress_forces(dt, grid_); });
   if (gravity && flip)

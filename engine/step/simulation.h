@@ -190,6 +190,10 @@ class Simulation {
   ContactState contact_;  // the contact solve's buffers, reused between substeps
   ContactMemory contact_memory_;  // the contact impulses, kept between substeps (rank 0's)
   SplitGather split_gather_;      // the far particles' gather, run beside the contact stage
+  // The block speeds the grid update leaves for the contact search, where no stage between
+  // them changes a velocity (else null, and the search makes its own).
+  BlockSpeeds block_speeds_;
+  BlockSpeeds* speeds_for_contact_ = nullptr;
   std::vector<Stage> stages_;
   double bound_seconds_ = 0;
   double huge_pages_seconds_ = -1;  // advise_heap_huge_pages' time; negative before it runs

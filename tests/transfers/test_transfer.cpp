@@ -59,6 +59,40 @@ TEST_CASE("P2G then G2P keeps linear momentum", "[transfers]") {
   }
 }
 
+TEST_CASE("grid_update's block speeds are those of the nodes with mass it leaves", "[transfers]") {
+  // The contact search bounds closing speeds by them (contact.cpp GridSpeed); grid_update sets
+  // them in its own pass, block_speeds in one of its own: both as a loop over the nodes says.
+  Particles p = random_cloud(3000, true, 4);
+  Grid g(unit_grid(16), false);
+  ParticleOrder ord;
+  sort_particles(p, Kernel::quadratic, g, ord);
+  particles_to_grid(p, ord, Transfer::apic, Kernel::quadratic, 0, g);
+  Grid copy = g;
+  BlockSpeeds fused;
+  grid_update(g, Vec3(0, -0.01, 0), &fused);
+  grid_update(copy, Vec3(0, -0.01, 0));
+  const BlockSpeeds after = block_speeds(copy);
+  REQUIRE(fused.block.size() == g.active_blocks());
+  CHECK(fused.block == after.block);
+  CHECK(fused.fastest == after.fastest);
+  Real fastest = 0;
+  int moving = 0;
+  for (std::size_t b = 0; b < g.active_blocks(); ++b) {
+    std::array<Real, 6> most{};
+    for (std::size_t i = b * Grid::kBlockNodes; i < (b + 1) * Grid::kBlockNodes; ++i)
+      if (g.mass[i] > 0)
+        for (int a = 0; a < 3; ++a) {
+          most[2 * a] = std::max(most[2 * a], g.velocity[i][a]);
+          most[2 * a + 1] = std::max(most[2 * a + 1], -g.velocity[i][a]);
+          fastest = std::max(fastest, g.velocity[i].norm());
+        }
+    CHECK(fused.block[b] == most);
+    moving += most[3] > 0;  // gravity: every block with mass moves down
+  }
+  CHECK(moving > 0);
+  CHECK(fused.fastest == Approx(fastest).epsilon(1e-14));
+}
+
 TEST_CASE("APIC round trip keeps angular momentum, PIC does not", "[transfers]") {
   // Jiang et al. 2015, section 5.3: with APIC, G2P then P2G leaves the grid's angular
   // momentum sum_i x_i x m_i v_i unchanged. PIC drops the particles' spin.
@@ -307,10 +341,16 @@ TEST_CASE("radix_order is the stable sort by key", "[transfers]") {
     for (std::size_t i = 0; i < n; ++i) expect[i] = static_cast<std::uint32_t>(i);
     std::stable_sort(expect.begin(), expect.end(),
                      [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
-    INFO("bits " << bits);
-    std::vector<std::uint32_t> order, scratch;
-    radix_order(
-        n, bits, [&](std::uint32_t i) { return keys[i]; }, order, scratch);
-    CHECK(order == expect);
+    // One thread, and teams that split the indices into parts (each pass's counts per part).
+    const int threads = omp_get_max_threads();
+    for (int team : {1, 2, 3}) {
+      INFO("bits " << bits << ", threads " << team);
+      omp_set_num_threads(team);
+      std::vector<std::uint32_t> order, scratch;
+      radix_order(
+          n, bits, [&](std::uint32_t i) { return keys[i]; }, order, scratch);
+      CHECK(order == expect);
+    }
+    omp_set_num_threads(threads);
   }
 }
