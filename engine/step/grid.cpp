@@ -72,13 +72,12 @@ void for_each_stored_node(const Grid& g, Fn&& f) {
 template <bool kAllNodes, class Nodes>
 void for_each_block_with_speeds(const Grid& g, const Nodes& nodes, BlockSpeeds& speeds) {
   const std::ptrdiff_t nb = static_cast<std::ptrdiff_t>(g.active_blocks());
+  const bool par = nb * Grid::kBlockNodes >= kParallelMinItems;
   speeds.block.resize(g.active_blocks());
   const Real* mass = g.mass.data();
   const Real* v = g.velocity.data()->data();
   Real squared = 0;
-#pragma omp parallel for schedule(static) \
-    reduction(max                         \
-              : squared) if (nb * Grid::kBlockNodes >= kParallelMinItems)
+#pragma omp parallel for schedule(static) reduction(max : squared) if (par)
   for (std::ptrdiff_t b = 0; b < nb; ++b) {
     std::array<Real, 6> most{};
     nodes(b * Grid::kBlockNodes, (b + 1) * Grid::kBlockNodes);
