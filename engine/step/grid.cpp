@@ -87,9 +87,16 @@ void for_each_block_with_speeds(const Grid& g, const Nodes& nodes, BlockSpeeds& 
         most[2 * a] = std::max(most[2 * a], v[3 * i + a]);
         most[2 * a + 1] = std::max(most[2 * a + 1], -v[3 * i + a]);
       }
-      squared = std::max(squared, Eigen::Map<const Vec3>(v + 3 * i).squaredNorm());
     }
     speeds.block[b] = most;
+    // The block's nodes' squared speeds only where they may pass the largest so far: each is
+    // at most that of the block's largest components (rounding keeps the order).
+    const Vec3 top(std::max(most[0], most[1]), std::max(most[2], most[3]),
+                   std::max(most[4], most[5]));
+    if (!(top.squaredNorm() > squared)) continue;
+    for (std::ptrdiff_t i = b * Grid::kBlockNodes; i < (b + 1) * Grid::kBlockNodes; ++i)
+      if (kAllNodes || mass[i] > 0)
+        squared = std::max(squared, Eigen::Map<const Vec3>(v + 3 * i).squaredNorm());
   }
   speeds.fastest = std::sqrt(squared);
 }
