@@ -121,7 +121,7 @@ void counting_sort(std::size_t cells, KeysOf&& keys_of, int reach, ParticleOrder
 }
 
 /// The same order as counting_sort by least-significant-digit radix passes (each a stable
-/// counting sort on up to 11 bits of the key), on one thread: time in proportion to the
+/// counting sort on up to 11 bits of the key, radix_order): time in proportion to the
 /// particles, where counting_sort's passes over the cells would cost more (a sparse box).
 void radix_sort(std::size_t cells, ParticleOrder& ord) {
   const std::vector<std::uint32_t>& keys = ord.keys;

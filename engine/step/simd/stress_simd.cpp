@@ -217,11 +217,7 @@ std::size_t StressImpl(const BatchModel& model, const StoredMat3* F, std::size_t
                        StoredMat3* out) {
   const std::ptrdiff_t batches = static_cast<std::ptrdiff_t>((n + kLanes - 1) / kLanes);
   std::size_t fallbacks = 0;
-  // Guided: the particles that yield (and those the scalar fallback takes) lie together in
-  // cell order, so equal parts are not equal work (frame 4 of snowball_paper: 1.59 s against
-  // 1.70 s static, 1.75 s dynamic in runs of 32). Each batch is its own particles' only
-  // writer, so the results do not depend on the schedule.
-#pragma omp parallel for schedule(guided, 8) reduction(+ : fallbacks) if (n >= kParallelMinItems)
+#pragma omp parallel for schedule(static) reduction(+ : fallbacks) if (n >= kParallelMinItems)
   for (std::ptrdiff_t b = 0; b < batches; ++b) {
     const std::size_t q0 = static_cast<std::size_t>(b) * kLanes;
     fallbacks += stress_batch(model, F + q0, model.state ? model.state + q0 : nullptr,
