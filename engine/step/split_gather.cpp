@@ -3,10 +3,10 @@
 #include <omp.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cstdint>
 #include <exception>
 
+#include "engine/core/shares.h"
 #include "engine/step/simd/transfer_simd.h"
 
 namespace mpm {
@@ -28,15 +28,19 @@ std::vector<std::uint32_t> chunks_marked(const SplitGather& split, char near) {
   return chunks;
 }
 
-/// Gathers the chunks `chunks` on the team, each thread taking the next one as it comes free
-/// (this thread first runs `first`, if any), and adds the advection to split.advect.
+/// Gathers the chunks `chunks` on the team, handed out by Shares (this thread first runs
+/// `first`, if any), and adds the advection to split.advect.
 void gather_chunks(const std::vector<std::uint32_t>& chunks, const std::function<void()>& first,
                    Transfer transfer, Kernel kernel, Real dt, const Grid& g, Particles& p,
                    SplitGather& split) {
-  constexpr std::size_t C = simd::kGatherAlign, kLeast = 4;
-  std::atomic<std::size_t> next{0};
+  constexpr std::size_t C = simd::kGatherAlign;
   std::exception_ptr error;
   const bool par = p.size() >= static_cast<std::size_t>(kParallelMinItems);
+  // Each thread first takes the chunks of its own share of the particles, the one whose slabs
+  // it scattered (Shares, as for_each_slab hands them out), four at a time, then the others'
+  // last ones: the chunks of thread 0's share that it has not reached when the contact ends go
+  // to the others.
+  Shares shares(chunks.size(), omp_get_max_threads(), 4);
 #pragma omp parallel if (par)
   {
     if (first && omp_get_thread_num() == 0) {
@@ -47,21 +51,12 @@ void gather_chunks(const std::vector<std::uint32_t>& chunks, const std::function
       }
     }
     AdvectStats mine;
-    // Guided: a thread takes a share of what is left (at least kLeast chunks), so each works
-    // on long runs of particles and of the grid, as gather's own schedule does.
-    const std::size_t team = static_cast<std::size_t>(omp_get_num_threads());
-    for (;;) {
-      std::size_t i = next.load(std::memory_order_relaxed), take;
-      do {
-        if (i >= chunks.size()) break;
-        take = std::max(kLeast, (chunks.size() - i) / (2 * team));
-      } while (!next.compare_exchange_weak(i, i + take, std::memory_order_relaxed));
-      if (i >= chunks.size()) break;
-      for (std::size_t j = i; j < std::min(chunks.size(), i + take); ++j) {
+    std::size_t i = 0, end = 0;
+    while (shares.next(i, end))
+      for (std::size_t j = i; j < end; ++j) {
         const std::size_t q0 = chunks[j] * C;
         simd::gather_range(g, transfer, kernel, dt, p, q0, std::min(p.size(), q0 + C), &mine);
       }
-    }
 #pragma omp critical(mpm_split_gather)
     combine(mine, split.advect);
   }

@@ -8,9 +8,10 @@
 #include <thread>
 #include <vector>
 
-#include "engine/step/grid.h"
 #include "engine/core/particles.h"
+#include "engine/core/shares.h"
 #include "engine/scene/scene_desc.h"
+#include "engine/step/grid.h"
 #include "materials/material.h"
 
 namespace mpm {
@@ -47,33 +48,46 @@ struct ParticleOrder {
 };
 
 /// Runs f(s) for every slab s of `order`, in parallel from `parallel_from` particles: the even
-/// slabs are handed out first, in order, then the odd ones, and an odd slab starts once the
-/// even slabs beside it are done. Every node so receives its even slab's sums before its odd
-/// slab's, on any thread count, as when all even slabs ran before all odd ones, but a thread
-/// done with its even slabs goes on to an odd one instead of waiting at a barrier for the
-/// last even slab (slabs end at whole planes of cells, so their particle counts differ).
+/// slabs first, then the odd ones, each colour handed out by Shares (each thread first its own
+/// run of neighbouring slabs, where the particles and nodes of its share of the other stages
+/// lie, then what is left of the other runs), and an odd slab starts once the even slabs
+/// beside it are done. Every node so receives its even slab's sums before its odd slab's, on
+/// any thread count, as when all even slabs ran before all odd ones, but a thread done with
+/// its even slabs goes on to an odd one instead of waiting at a barrier for the last even slab
+/// (slabs end at whole planes of cells, so their particle counts differ).
 template <class Fn>
 void for_each_slab(const ParticleOrder& order, Fn&& f, long parallel_from = kParallelMinItems) {
   const int slabs = static_cast<int>(order.slab_start.size()) - 1, evens = (slabs + 1) / 2;
-  const auto slab = [evens](int k) { return k < evens ? 2 * k : 2 * (k - evens) + 1; };
   if (static_cast<long>(order.order.size()) < parallel_from) {
-    for (int k = 0; k < slabs; ++k) f(slab(k));
+    for (int s = 0; s < slabs; s += 2) f(s);
+    for (int s = 1; s < slabs; s += 2) f(s);
     return;
   }
   std::vector<std::atomic<bool>> done(static_cast<std::size_t>(std::max(slabs, 0)));
-  std::atomic<int> next{0};
+  const int team = omp_get_max_threads();
+  Shares even(static_cast<std::size_t>(evens), team, 1);
+  Shares odd(static_cast<std::size_t>(slabs - evens), team, 1);
+  const auto run = [&](int s) {
+    f(s);
+    done[static_cast<std::size_t>(s)].store(true, std::memory_order_release);
+  };
   const auto wait_for = [&](int s) {
-    while (s < slabs && !done[s].load(std::memory_order_acquire)) std::this_thread::yield();
+    while (s < slabs && !done[static_cast<std::size_t>(s)].load(std::memory_order_acquire))
+      std::this_thread::yield();
   };
 #pragma omp parallel
-  for (int k = next++; k < slabs; k = next++) {
-    const int s = slab(k);
-    if (s % 2 == 1) {  // every even slab was handed out before it: the waits end
-      wait_for(s - 1);
-      wait_for(s + 1);
-    }
-    f(s);
-    done[s].store(true, std::memory_order_release);
+  {
+    std::size_t first = 0, last = 0;
+    while (even.next(first, last))
+      for (std::size_t k = first; k < last; ++k) run(2 * static_cast<int>(k));
+    // Every even slab has been taken by a thread that runs it to the end: the waits end.
+    while (odd.next(first, last))
+      for (std::size_t k = first; k < last; ++k) {
+        const int s = 2 * static_cast<int>(k) + 1;
+        wait_for(s - 1);
+        wait_for(s + 1);
+        run(s);
+      }
   }
 }
 

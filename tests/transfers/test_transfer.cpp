@@ -4,9 +4,11 @@
 #include <algorithm>
 #include <catch2/catch.hpp>
 #include <random>
+#include <stdexcept>
 #include <tuple>
 
 #include "engine/core/radix_sort.h"
+#include "engine/core/shares.h"
 #include "engine/step/grid.h"
 #include "engine/step/kernels.h"
 #include "engine/step/transfer.h"
@@ -326,6 +328,52 @@ TEST_CASE("grid_update with gravity folded in gives the two stages' velocities, 
   }
   Grid flip(unit_grid(8), true);
   CHECK_THROWS_AS(grid_update(flip, Vec3(0, -1, 0)), std::logic_error);
+}
+
+TEST_CASE("Shares hands out every item once, each share to its owner first", "[transfers]") {
+  // One thread: its own share in grains, then the other's from the back, half of what is left.
+  Shares one(10, 2, 3);
+  std::vector<std::pair<std::size_t, std::size_t>> taken;
+  for (std::size_t first = 0, last = 0; one.next(0, first, last);) taken.emplace_back(first, last);
+  using R = std::vector<std::pair<std::size_t, std::size_t>>;
+  CHECK(taken == R{{0, 3}, {3, 5}, {7, 10}, {5, 7}});
+  CHECK_THROWS_AS(Shares(std::size_t{1} << 33, 2, 1), std::length_error);
+  // Teams of 1 to 3 threads on 3 shares: each item once; in each share, the owner's items come
+  // first and in order, the other threads' after them.
+  const int threads = omp_get_max_threads();
+  for (int team : {1, 2, 3}) {
+    INFO("threads " << team);
+    omp_set_num_threads(team);
+    const std::size_t n = 5000;
+    Shares shares(n, 3, 7);
+    std::vector<int> owner(n, -1);
+    std::vector<std::vector<std::pair<std::size_t, std::size_t>>> claims(3);
+#pragma omp parallel
+    {
+      const int t = omp_get_thread_num();
+      for (std::size_t first = 0, last = 0; shares.next(first, last);) {
+        for (std::size_t i = first; i < last; ++i) owner[i] = owner[i] == -1 ? t : -2;
+        claims[static_cast<std::size_t>(t)].emplace_back(first, last);
+        volatile double sink = 0;  // some work, so that the threads overlap
+        for (int i = 0; i < 2000; ++i) sink = sink + i;
+      }
+    }
+    REQUIRE(std::count_if(owner.begin(), owner.end(), [](int o) { return o < 0; }) == 0);
+    for (int s = 0; s < 3; ++s) {
+      const std::size_t lo = s * n / 3, hi = (s + 1) * n / 3;
+      std::size_t next = lo;  // the owner's claims in its share: in order from its start
+      if (s < team)
+        for (const auto& [first, last] : claims[static_cast<std::size_t>(s)])
+          if (first >= lo && first < hi) {
+            CHECK(first == next);
+            next = last;
+          }
+      std::size_t misplaced = 0;  // the owner's items after another thread's, or the reverse
+      for (std::size_t i = lo; i < hi; ++i) misplaced += (i < next) != (owner[i] == s);
+      CHECK(misplaced == 0);
+    }
+  }
+  omp_set_num_threads(threads);
 }
 
 TEST_CASE("radix_order is the stable sort by key", "[transfers]") {
