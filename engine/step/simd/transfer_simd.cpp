@@ -810,9 +810,11 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   // lane. The values are the same either way. The reorder stage keeps a cell's particles
   // together, but between reorders the particles that cross a cell face interleave with those
   // that stay, so lanes are grouped by cell, not by runs of equal neighbours (two cells in
-  // alternating lanes are two cells, not sixteen runs). Cells near a surface hold fewer
-  // particles: 99.7 % of the batches of two_cubes and jello span eight or fewer.
-  constexpr int kMaxCells = 8;
+  // alternating lanes are two cells, not sixteen runs). 99 % of jello's batches and about 80 %
+  // of two_cubes' span three or fewer. A batch of four or more (snow blown into dust: about
+  // 1.9 particles a cell) gathers by index: with 8 lanes that was 4 % faster on
+  // snowball_paper's dust than blending up to eight cells (docs/performance.md).
+  constexpr int kMaxCells = 3;
   std::size_t cell_lane[kMaxCells] = {};  // a lane of each cell
   hn::Mask<DF> in_cell[kMaxCells];
   int cells = 0;
@@ -845,7 +847,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   // spans at most two blocks per axis (block b0 or b0 + 1: `up`), so the slots of the eight
   // blocks are gathered from the page table once per batch and chosen per node by blends.
   // A block the lane's stencil does not reach is clamped into the domain and never chosen.
-  // Only for more than kMaxCells cells (never with 8 lanes or fewer).
+  // Only for more than kMaxCells cells.
   VI off[3][N], slots[2][2][2];
   hn::Mask<DI> up[3][N];
   if (!few) {
@@ -897,14 +899,14 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   }
   const auto sum_components = [&](auto e0, auto e1, auto kc) {
     constexpr int E0 = decltype(e0)::value, E1 = decltype(e1)::value;
-    const int ncells = decltype(kc)::value > 0 ? decltype(kc)::value : cells;  // kc: 0, any
-    const bool lanes_few = decltype(kc)::value > 0 || few;
+    constexpr int ncells = decltype(kc)::value;  // 0: more than kMaxCells, gathered by index
+    constexpr bool lanes_few = ncells > 0;
     for (int i = 0; i < N; ++i)
       for (int j = 0; j < N; ++j) {
         VF r0[3], r1[3], r2[3];
         for (int e = E0; e < E1; ++e) r0[e] = r1[e] = r2[e] = hn::Zero(d);
         VI oij, sij[2];  // the row's offset in its block and the slots of its two z blocks
-        if (!lanes_few) {
+        if constexpr (!lanes_few) {
           oij = hn::Add(off[0][i], off[1][j]);
           for (int z = 0; z < 2; ++z)
             sij[z] =
@@ -913,7 +915,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
         }
         for (int k = 0; k < N; ++k) {
           VF v3[3];
-          if (lanes_few) {
+          if constexpr (lanes_few) {
             const int n = (i * N + j) * N + k;
             const float* vf = g.velocity_f.data();
             for (int e = E0; e < E1; ++e) {
@@ -965,9 +967,9 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
         }
       }
   };
-  // One to three cells (most batches: 99 % of jello's, about 80 % of two_cubes') with their
-  // count known to the compiler, so each node's blends unroll without a loop. Four as well
-  // was slower (docs/performance.md): each count adds a copy of the sums' code.
+  // One to three cells with their count known to the compiler, so each node's blends unroll
+  // without a loop. Four as well was slower (docs/performance.md): each count adds a copy of
+  // the sums' code.
   const auto sum_all = [&](auto kc) {
     sum_components(std::integral_constant<int, 0>{}, std::integral_constant<int, 2>{}, kc);
     sum_components(std::integral_constant<int, 2>{}, std::integral_constant<int, 3>{}, kc);
