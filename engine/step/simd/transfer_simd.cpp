@@ -1089,18 +1089,22 @@ void gather_all(const Grid& g, Real dt, Particles& p, AdvectStats* advect) {
   const AdvectBox box(g);
   std::size_t clamped = 0, nonfinite = 0;
   Real v2 = 0;
-  // Handed out guided (chunks shrinking to 64 lane sets) as threads come free: on a machine
-  // whose cores' speeds differ from minute to minute (a virtual machine sharing its host) the
-  // faster core takes more, and large first chunks keep each core on its own part of the
-  // grid. Every particle's values are its own, so they do not depend on the schedule.
-#pragma omp parallel for schedule(guided, 64) reduction(+ : clamped, nonfinite) \
-    reduction(max : v2) if (n >= kParallelMinItems)
-  for (std::ptrdiff_t b = 0; b < batches; ++b) {
-    const std::size_t q0 = static_cast<std::size_t>(b) * kLanes;
-    const std::size_t count = std::min(kLanes, n - q0);
-    alignas(64) float v[3][kLanes];
-    gather_batch<K, T>(g, dt, q0, count, p, v);
-    if (advect) advect_batch(box, dt, q0, count, v, p, clamped, nonfinite, v2);
+  // Handed out by Shares, 16 lane sets at a time: each thread first gathers its own part of
+  // the particles, whose nodes its scatter left in its caches, then what is left of the
+  // other's. Every particle's values are its own, so they do not depend on the schedule.
+  const bool par = n >= kParallelMinItems;
+  Shares shares(static_cast<std::size_t>(batches), par ? omp_get_max_threads() : 1, 16);
+#pragma omp parallel reduction(+ : clamped, nonfinite) reduction(max : v2) if (par)
+  {
+    std::size_t first = 0, last = 0;
+    while (shares.next(first, last))
+      for (std::size_t b = first; b < last; ++b) {
+        const std::size_t q0 = b * kLanes;
+        const std::size_t count = std::min(kLanes, n - q0);
+        alignas(64) float v[3][kLanes];
+        gather_batch<K, T>(g, dt, q0, count, p, v);
+        if (advect) advect_batch(box, dt, q0, count, v, p, clamped, nonfinite, v2);
+      }
   }
   if (advect) *advect = {clamped, nonfinite, std::sqrt(v2)};
 }
