@@ -42,7 +42,15 @@ struct Grid {
   std::vector<Vec3> velocity;      ///< Momentum after transfer, then velocity, m/s.
   std::vector<Vec3> force;         ///< Internal force from stress, N (FLIP only; else empty).
   std::vector<Vec3> velocity_old;  ///< Velocity before forces (FLIP only; else empty).
-  /// Scratch of the SIMD gather: the velocity in float, (x, y) pairs, then all z.
+  /// Nodes per row of velocity_f for stencils of N nodes per axis: a block's kBlockEdge along
+  /// z, then the next z block's first N - 1, so that the stencil's z nodes lie in one row.
+  static constexpr int row_nodes(int N) { return kBlockEdge + N - 1; }
+  /// Floats of velocity_f per block slot: kBlockEdge^2 rows (i, j) of row_nodes(N) x, y, z.
+  static constexpr int row_block_floats(int N) {
+    return kBlockEdge * kBlockEdge * 3 * row_nodes(N);
+  }
+  /// Scratch of the SIMD gather: the velocity in float in rows along z (simd::prepare_gather),
+  /// row_block_floats(N) per slot, row (i, j) of the block at 3 row_nodes(N) (i kBlockEdge + j).
   mutable std::vector<float> velocity_f;
 
   /// A grid for `desc`; `flip` keeps velocity_old and force, which only FLIP uses.
@@ -109,6 +117,31 @@ struct Grid {
           for (int k = 0; k < N; ++k) out[c++] = (blk[2][k] ? row1 : row0) + off[2][k];
         }
       }
+  }
+  /// Offsets in velocity_f of the N^2 rows (i, j) of the stencil from `base` (i slowest), each
+  /// at node base + (i, j, 0): node (i, j, k)'s x, y and z follow at 3 k, 3 k + 1 and 3 k + 2.
+  /// Every block of the stencil must be active.
+  template <int N>
+  void stencil_rows(const Vec3i& base, std::uint32_t* out) const {
+    static_assert(N <= kBlockEdge + 1, "a stencil spans at most two blocks per axis");
+    constexpr int m = kBlockEdge - 1, R = row_nodes(N);
+    const Vec3i b0(base.x() >> kBlockBits, base.y() >> kBlockBits, base.z() >> kBlockBits);
+    int blk[2][N], off[2][N];
+    for (int a = 0; a < 2; ++a)
+      for (int t = 0; t < N; ++t) {
+        blk[a][t] = ((base[a] + t) >> kBlockBits) - b0[a];
+        off[a][t] = (base[a] + t) & m;
+      }
+    std::uint32_t first[2][2] = {};  // blocks the stencil does not reach stay 0, unused
+    for (int di = 0; di <= blk[0][N - 1]; ++di)
+      for (int dj = 0; dj <= blk[1][N - 1]; ++dj) {
+        const std::int32_t s = slot[page(b0.x() + di, b0.y() + dj, b0.z())];
+        assert(s >= 0 && "the sort activates every block a stencil touches");
+        first[di][dj] = static_cast<std::uint32_t>(s) * row_block_floats(N) + 3 * (base.z() & m);
+      }
+    for (int i = 0; i < N; ++i)
+      for (int j = 0; j < N; ++j)
+        out[N * i + j] = first[blk[0][i]][blk[1][j]] + 3 * R * (off[0][i] * kBlockEdge + off[1][j]);
   }
   /// Storage index of node (i, j, k), whose block must be active.
   std::size_t node_index(int i, int j, int k) const {

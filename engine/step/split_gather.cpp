@@ -79,7 +79,7 @@ bool gather_beside(const ContactPass& contact, const std::vector<WallPlane>& pla
   split.pending = true;
   ++split.runs;
   const std::vector<IndexRange> search = marked_ranges(split.near, C, particles.size());
-  simd::prepare_gather(grid);
+  simd::prepare_gather(grid, kernel);
   gather_chunks(
       far, [&] { contact(&search); }, transfer, kernel, dt, grid, particles, split);
   return true;
@@ -87,7 +87,7 @@ bool gather_beside(const ContactPass& contact, const std::vector<WallPlane>& pla
 
 void gather_rest(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& particles,
                  SplitGather& split, AdvectStats* advect) {
-  simd::prepare_gather(grid);  // the contact's and the domain boundary's nodes changed
+  simd::prepare_gather(grid, kernel);  // the contact's and the domain boundary's nodes changed
   gather_chunks(chunks_marked(split, 1), {}, transfer, kernel, dt, grid, particles, split);
   split.pending = false;
   if (advect) *advect = split.advect;

@@ -803,8 +803,7 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   alignas(64) float dist[3][kLanes], corner[3][kLanes];
   alignas(64) std::int32_t base[3][kLanes];
   gather_stencil<K>(g, p, q0, count, dist, corner, base);
-  VF Fin[9];  // F in lanes: Fin[e] holds entry e (column-major) of each lane's F
-  load_matrix_lanes(&p.F[q0], count, Fin);
+  hwy::Prefetch(&p.F[q0]);  // loaded after the sums
   // The distinct stencil cells of the lanes: with at most kMaxCells of them, each cell's node
   // velocities are loaded once and spread to its lanes by blends, instead of gathered lane by
   // lane. The values are the same either way. The reorder stage keeps a cell's particles
@@ -836,25 +835,25 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     }
   }
   const bool few = cells <= kMaxCells;
-  std::size_t cell_nodes[kMaxCells][N * N * N];
+  std::uint32_t cell_rows[kMaxCells][N * N];  // each cell's rows of velocity_f
   if (few)
     for (int r = 0; r < cells; ++r) {
       const std::size_t l = cell_lane[r];
-      g.stencil_indices<N>(Vec3i(base[0][l], base[1][l], base[2][l]), cell_nodes[r]);
+      g.stencil_rows<N>(Vec3i(base[0][l], base[1][l], base[2][l]), cell_rows[r]);
     }
-  // Storage index of node base + (i, j, k), per lane, as Grid::stencil_indices computes it:
-  // the slot of the node's block times 64, plus the node's offset in the block. A stencil
-  // spans at most two blocks per axis (block b0 or b0 + 1: `up`), so the slots of the eight
-  // blocks are gathered from the page table once per batch and chosen per node by blends.
-  // A block the lane's stencil does not reach is clamped into the domain and never chosen.
-  // Only for more than kMaxCells cells.
-  VI off[3][N], slots[2][2][2];
-  hn::Mask<DI> up[3][N];
+  // Offset in velocity_f of row (i, j) of each lane's stencil, as Grid::stencil_rows computes
+  // it: the slot of the row's block times kRowBlockFloats, plus the row's offset in the block
+  // and the stencil's z offset there. A stencil spans at most two blocks along x and y (block
+  // b0 or b0 + 1: `up`), so the slots of the four blocks are gathered from the page table once
+  // per batch and chosen per row by blends. A block the lane's stencil does not reach is
+  // clamped into the domain and never chosen. Only for more than kMaxCells cells.
+  VI off[2][N], slots[2][2], zoff;
+  hn::Mask<DI> up[2][N];
   if (!few) {
     const std::int32_t stride[3] = {g.blocks.y() * g.blocks.z(), g.blocks.z(), 1};
     const VI mask = hn::Set(di, Grid::kBlockEdge - 1);
-    VI page[3][2];
-    for (int a = 0; a < 3; ++a) {
+    VI page[2][2];
+    for (int a = 0; a < 2; ++a) {
       const VI b = hn::Load(di, base[a]);
       const VI b0 = hn::ShiftRight<Grid::kBlockBits>(b);
       const VI last = hn::Set(di, g.blocks[a] - 1);
@@ -863,125 +862,140 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       for (int t = 0; t < N; ++t) {
         const VI s = hn::Add(hn::And(b, mask), hn::Set(di, t));  // offset from block b0
         up[a][t] = hn::Gt(s, mask);
-        const VI o = hn::And(s, mask);
-        off[a][t] = a == 0   ? hn::ShiftLeft<2 * Grid::kBlockBits>(o)
-                    : a == 1 ? hn::ShiftLeft<Grid::kBlockBits>(o)
-                             : o;
+        const int row = 3 * Grid::row_nodes(N) * (a == 0 ? Grid::kBlockEdge : 1);
+        off[a][t] = hn::Mul(hn::And(s, mask), hn::Set(di, row));
       }
     }
+    const VI bz = hn::Load(di, base[2]);
+    zoff = hn::Mul(hn::And(bz, mask), hn::Set(di, 3));
+    const VI pz = hn::ShiftRight<Grid::kBlockBits>(bz);
     for (int x = 0; x < 2; ++x)
       for (int y = 0; y < 2; ++y)
-        for (int z = 0; z < 2; ++z)
-          slots[x][y][z] = hn::GatherIndex(di, g.slot.data(),
-                                           hn::Add(hn::Add(page[0][x], page[1][y]), page[2][z]));
+        slots[x][y] = hn::Mul(
+            hn::GatherIndex(di, g.slot.data(), hn::Add(hn::Add(page[0][x], page[1][y]), pz)),
+            hn::Set(di, Grid::row_block_floats(N)));
   }
-  VF w[3][N], dw[3][N];
+  // The 1D weights, their derivatives and t w_t (for the index moments) per axis and node, kept
+  // in memory as the sums' operands: with 16 vector registers (AVX2) only the running sums
+  // stay in registers.
+  alignas(64) float w[3][N][kLanes], dw[3][N][kLanes], tw[3][N][kLanes];
   for (int a = 0; a < 3; ++a) {
-    lane_weights<K>(d, hn::Load(d, dist[a]), w[a], dw[a]);
+    VF wa[N], dwa[N];
+    lane_weights<K>(d, hn::Load(d, dist[a]), wa, dwa);
     const VF s = hn::Set(d, static_cast<float>(g.inv_h[a]));
-    for (int k = 0; k < N; ++k) dw[a][k] = hn::Mul(dw[a][k], s);
+    for (int t = 0; t < N; ++t) {
+      hn::Store(wa[t], d, w[a][t]);
+      hn::Store(hn::Mul(dwa[t], s), d, dw[a][t]);
+      hn::Store(hn::Mul(hn::Set(d, static_cast<float>(t)), wa[t]), d, tw[a][t]);
+    }
   }
-  // Node velocities: (x, y) pairs gathered as one 64-bit value per lane (half the gathers'
-  // elements of two 32-bit gathers), then split into x and y lanes; z on its own.
-  const std::uint64_t* vel_xy = reinterpret_cast<const std::uint64_t*>(g.velocity_f.data());
-  const float* vel_z = g.velocity_f.data() + 2 * g.mass.size();
-  const hn::Repartition<std::uint64_t, DF> du64;
-  const hn::Repartition<std::int64_t, DF> di64;
-  const hn::Half<DI> dih;
-  // Each (i, j) row of the stencil summed over k first (r0: w2, r1: dw2, r2: k w2), then the
-  // rows: v, grad v (column a: d/dx_a) and the index moments sum w v (i, j, k) for B. Done
-  // for components [E0, E1) at a time (x and y, whose node values come in pairs, then z), so
-  // the sums stay in registers: all three at once need more than 32 vectors.
-  VF sv[3], sg[3][3], sb[3][3];
-  for (int e = 0; e < 3; ++e) {
-    sv[e] = hn::Zero(d);
-    for (int a = 0; a < 3; ++a) sg[e][a] = sb[e][a] = hn::Zero(d);
-  }
-  const auto sum_components = [&](auto e0, auto e1, auto kc) {
-    constexpr int E0 = decltype(e0)::value, E1 = decltype(e1)::value;
+  // The stencil's node velocities per component, node and lane. With at most kMaxCells cells
+  // (ncells, known to the compiler) each cell's value is broadcast and blended into its lanes;
+  // else gathered lane by lane: (x, y) pairs as one 64-bit value per lane (half the gathers'
+  // elements of two 32-bit gathers), then split into x and y lanes, and z on its own.
+  const float* vf = g.velocity_f.data();
+  alignas(64) float nv[3][N * N * N][kLanes];
+  const auto load_nodes = [&](auto kc) {
     constexpr int ncells = decltype(kc)::value;  // 0: more than kMaxCells, gathered by index
-    constexpr bool lanes_few = ncells > 0;
     for (int i = 0; i < N; ++i)
       for (int j = 0; j < N; ++j) {
-        VF r0[3], r1[3], r2[3];
-        for (int e = E0; e < E1; ++e) r0[e] = r1[e] = r2[e] = hn::Zero(d);
-        VI oij, sij[2];  // the row's offset in its block and the slots of its two z blocks
-        if constexpr (!lanes_few) {
-          oij = hn::Add(off[0][i], off[1][j]);
-          for (int z = 0; z < 2; ++z)
-            sij[z] =
-                hn::IfThenElse(up[1][j], hn::IfThenElse(up[0][i], slots[1][1][z], slots[0][1][z]),
-                               hn::IfThenElse(up[0][i], slots[1][0][z], slots[0][0][z]));
-        }
-        for (int k = 0; k < N; ++k) {
-          VF v3[3];
-          if constexpr (lanes_few) {
-            const int n = (i * N + j) * N + k;
-            const float* vf = g.velocity_f.data();
-            for (int e = E0; e < E1; ++e) {
-              auto node = [&](int r) {
-                const std::size_t x = cell_nodes[r][n];
-                return hn::Set(d, e < 2 ? vf[2 * x + e] : vel_z[x]);
-              };
-              v3[e] = node(0);
-              for (int r = 1; r < ncells; ++r) v3[e] = hn::IfThenElse(in_cell[r], node(r), v3[e]);
+        const int n0 = (i * N + j) * N;
+        if constexpr (ncells > 0) {
+          const float* row[ncells];  // each cell's row (i, j)
+          for (int r = 0; r < ncells; ++r) row[r] = vf + cell_rows[r][N * i + j];
+          for (int k = 0; k < N; ++k)
+            for (int e = 0; e < 3; ++e) {
+              VF v = hn::Set(d, row[0][3 * k + e]);
+              for (int r = 1; r < ncells; ++r)
+                v = hn::IfThenElse(in_cell[r], hn::Set(d, row[r][3 * k + e]), v);
+              hn::Store(v, d, nv[e][n0 + k]);
             }
-          } else {
-            const VI sl = hn::IfThenElse(up[2][k], sij[1], sij[0]);
-            const VI vi = hn::Add(hn::ShiftLeft<3 * Grid::kBlockBits>(sl), hn::Add(oij, off[2][k]));
-            if constexpr (E0 == 0) {
-              const VF lo = hn::BitCast(
-                  d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::LowerHalf(dih, vi))));
-              const VF hi = hn::BitCast(
-                  d, hn::GatherIndex(du64, vel_xy, hn::PromoteTo(di64, hn::UpperHalf(dih, vi))));
-              v3[0] = hn::ConcatEven(d, hi, lo);
-              v3[1] = hn::ConcatOdd(d, hi, lo);
-            }
-            if constexpr (E1 == 3) v3[2] = hn::GatherIndex(d, vel_z, vi);
-          }
-          for (int e = E0; e < E1; ++e) {
-            const VF ve = v3[e];
-            r0[e] = hn::MulAdd(w[2][k], ve, r0[e]);
-            if constexpr (kGrad) r1[e] = hn::MulAdd(dw[2][k], ve, r1[e]);
-            if constexpr (kAffine)  // k = 0 adds 0 v
-              if (k > 0)
-                r2[e] = hn::MulAdd(hn::Mul(hn::Set(d, static_cast<float>(k)), w[2][k]), ve, r2[e]);
-          }
-        }
-        const VF w01 = hn::Mul(w[0][i], w[1][j]);
-        const VF gx = hn::Mul(dw[0][i], w[1][j]), gy = hn::Mul(w[0][i], dw[1][j]);
-        const VF iw = hn::Mul(hn::Set(d, static_cast<float>(i)), w01);
-        const VF jw = hn::Mul(hn::Set(d, static_cast<float>(j)), w01);
-        for (int e = E0; e < E1; ++e) {
-          sv[e] = hn::MulAdd(w01, r0[e], sv[e]);
-          if constexpr (kGrad) {
-            sg[e][0] = hn::MulAdd(gx, r0[e], sg[e][0]);
-            sg[e][1] = hn::MulAdd(gy, r0[e], sg[e][1]);
-            sg[e][2] = hn::MulAdd(w01, r1[e], sg[e][2]);
-          }
-          if constexpr (kAffine) {  // the index moments skip the zero terms of i = 0, j = 0
-            if (i > 0) sb[e][0] = hn::MulAdd(iw, r0[e], sb[e][0]);
-            if (j > 0) sb[e][1] = hn::MulAdd(jw, r0[e], sb[e][1]);
-            sb[e][2] = hn::MulAdd(w01, r2[e], sb[e][2]);
+        } else {
+          const hn::Repartition<std::uint64_t, DF> du64;
+          const hn::Repartition<std::int64_t, DF> di64;
+          const hn::Half<DI> dih;
+          const std::uint64_t* vel_xy = reinterpret_cast<const std::uint64_t*>(vf);
+          const VI sij =
+              hn::IfThenElse(up[1][j], hn::IfThenElse(up[0][i], slots[1][1], slots[0][1]),
+                             hn::IfThenElse(up[0][i], slots[1][0], slots[0][0]));
+          const VI rij = hn::Add(hn::Add(sij, zoff), hn::Add(off[0][i], off[1][j]));
+          for (int k = 0; k < N; ++k) {
+            const VI vi = hn::Add(rij, hn::Set(di, 3 * k));  // node (i, j, k)'s x
+            const auto pair = [&](auto half) {  // byte offsets: a pair starts at any float
+              return hn::BitCast(
+                  d, hn::GatherOffset(du64, vel_xy, hn::ShiftLeft<2>(hn::PromoteTo(di64, half))));
+            };
+            const VF lo = pair(hn::LowerHalf(dih, vi)), hi = pair(hn::UpperHalf(dih, vi));
+            hn::Store(hn::ConcatEven(d, hi, lo), d, nv[0][n0 + k]);
+            hn::Store(hn::ConcatOdd(d, hi, lo), d, nv[1][n0 + k]);
+            hn::Store(hn::GatherIndex(d, vf + 2, vi), d, nv[2][n0 + k]);
           }
         }
       }
   };
-  // One to three cells with their count known to the compiler, so each node's blends unroll
-  // without a loop. Four as well was slower (docs/performance.md): each count adds a copy of
-  // the sums' code.
-  const auto sum_all = [&](auto kc) {
-    sum_components(std::integral_constant<int, 0>{}, std::integral_constant<int, 2>{}, kc);
-    sum_components(std::integral_constant<int, 2>{}, std::integral_constant<int, 3>{}, kc);
-  };
   if (cells == 1)
-    sum_all(std::integral_constant<int, 1>{});
+    load_nodes(std::integral_constant<int, 1>{});
   else if (cells == 2)
-    sum_all(std::integral_constant<int, 2>{});
+    load_nodes(std::integral_constant<int, 2>{});
   else if (cells == 3)
-    sum_all(std::integral_constant<int, 3>{});
+    load_nodes(std::integral_constant<int, 3>{});
   else
-    sum_all(std::integral_constant<int, 0>{});
+    load_nodes(std::integral_constant<int, 0>{});
+  // Per component, the stencil's sums of v, grad v (column a: d/dx_a) and the index moments
+  // sum w v (i, j, k) for B, separably: over k for each (i, j) (r), then over j for each i
+  // (t), then over i (s), so that 15 running sums are live at a time.
+  alignas(64) float sums[3][7][kLanes];  // v; grad v along x, y, z; moments i, j, k
+  for (int e = 0; e < 3; ++e) {
+    VF s[7];
+    for (VF& x : s) x = hn::Zero(d);
+    for (int i = 0; i < N; ++i) {
+      VF t[5];  // sum over j of: w r0, dw r0, w r1, j w r0, w r2
+      for (VF& x : t) x = hn::Zero(d);
+      for (int j = 0; j < N; ++j) {
+        VF r0 = hn::Zero(d), r1 = hn::Zero(d), r2 = hn::Zero(d);  // over k: w v, dw v, k w v
+        for (int k = 0; k < N; ++k) {
+          const VF v = hn::Load(d, nv[e][(i * N + j) * N + k]);
+          r0 = hn::MulAdd(hn::Load(d, w[2][k]), v, r0);
+          if constexpr (kGrad) r1 = hn::MulAdd(hn::Load(d, dw[2][k]), v, r1);
+          if constexpr (kAffine)  // k = 0 adds 0 v
+            if (k > 0) r2 = hn::MulAdd(hn::Load(d, tw[2][k]), v, r2);
+        }
+        const VF wj = hn::Load(d, w[1][j]);
+        t[0] = hn::MulAdd(wj, r0, t[0]);
+        if constexpr (kGrad) {
+          t[1] = hn::MulAdd(hn::Load(d, dw[1][j]), r0, t[1]);
+          t[2] = hn::MulAdd(wj, r1, t[2]);
+        }
+        if constexpr (kAffine) {
+          if (j > 0) t[3] = hn::MulAdd(hn::Load(d, tw[1][j]), r0, t[3]);
+          t[4] = hn::MulAdd(wj, r2, t[4]);
+        }
+      }
+      const VF wi = hn::Load(d, w[0][i]);
+      s[0] = hn::MulAdd(wi, t[0], s[0]);
+      if constexpr (kGrad) {
+        s[1] = hn::MulAdd(hn::Load(d, dw[0][i]), t[0], s[1]);
+        s[2] = hn::MulAdd(wi, t[1], s[2]);
+        s[3] = hn::MulAdd(wi, t[2], s[3]);
+      }
+      if constexpr (kAffine) {
+        if (i > 0) s[4] = hn::MulAdd(hn::Load(d, tw[0][i]), t[0], s[4]);
+        s[5] = hn::MulAdd(wi, t[3], s[5]);
+        s[6] = hn::MulAdd(wi, t[4], s[6]);
+      }
+    }
+    for (int c = 0; c < 7; ++c) hn::Store(s[c], d, sums[e][c]);
+  }
+  VF sv[3], sg[3][3], sb[3][3];
+  for (int e = 0; e < 3; ++e) {
+    sv[e] = hn::Load(d, sums[e][0]);
+    for (int a = 0; a < 3; ++a) {
+      sg[e][a] = hn::Load(d, sums[e][1 + a]);
+      sb[e][a] = hn::Load(d, sums[e][4 + a]);
+    }
+  }
+  VF Fin[9];  // F in lanes: Fin[e] holds entry e (column-major) of each lane's F
+  load_matrix_lanes(&p.F[q0], count, Fin);
   // C = B D^-1 with B = v corner^T + sum w v (i, j, k)^T diag(h) (Jiang et al. 2015, eq. 8-10);
   // the linear kernel takes C = grad v (section 5.3).
   VF C[3][3];
@@ -1204,8 +1218,9 @@ HWY_EXPORT(CellKeysImpl);
 HWY_EXPORT(TargetImpl);
 
 bool supports(Transfer transfer, Kernel, const Grid& grid) {
+  // velocity_f's offsets are 32-bit
   return target_name() != nullptr && transfer != Transfer::flip &&
-         grid.mass.size() < (std::size_t{1} << 31);
+         grid.mass.size() / Grid::kBlockNodes * Grid::row_block_floats(4) < (std::size_t{1} << 31);
 }
 
 void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, Kernel kernel,
@@ -1215,21 +1230,35 @@ void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, 
 
 void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,
             AdvectStats* advect) {
-  prepare_gather(grid);
+  prepare_gather(grid, kernel);
   HWY_DYNAMIC_DISPATCH(GatherImpl)(grid, transfer, kernel, dt, p, advect);
 }
 
-void prepare_gather(const Grid& grid) {
-  // Node velocities in float for the lane gathers: (x, y) pairs, then all z.
-  const std::size_t nodes = grid.mass.size();
-  grid.velocity_f.resize(3 * nodes);
-  const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(nodes);
-#pragma omp parallel for schedule(static) if (count >= kParallelMinItems)
-  for (std::ptrdiff_t i = 0; i < count; ++i) {
-    grid.velocity_f[2 * i] = static_cast<float>(grid.velocity[i].x());
-    grid.velocity_f[2 * i + 1] = static_cast<float>(grid.velocity[i].y());
-    grid.velocity_f[2 * nodes + i] = static_cast<float>(grid.velocity[i].z());
-  }
+void prepare_gather(const Grid& grid, Kernel kernel) {
+  // Node velocities in float for the lane gathers, in rows along z (Grid::velocity_f): row
+  // (i, j) of a block holds its nodes (i, j, 0 to 3), then the first N - 1 of the next block
+  // along z (zero where that block has no storage: no stencil reaches into it), so a
+  // stencil's nodes along z are consecutive in memory wherever it starts.
+  dispatch_kernel(kernel, [&]<Kernel K>() {
+    constexpr int E = Grid::kBlockEdge, R = Grid::row_nodes(KernelTraits<K>::kNodes);
+    constexpr int kBlockFloats = Grid::row_block_floats(KernelTraits<K>::kNodes);
+    const std::ptrdiff_t nb = static_cast<std::ptrdiff_t>(grid.active_blocks());
+    grid.velocity_f.resize(static_cast<std::size_t>(nb) * kBlockFloats);
+#pragma omp parallel for schedule(static) if (nb * Grid::kBlockNodes >= kParallelMinItems)
+    for (std::ptrdiff_t b = 0; b < nb; ++b) {
+      const Vec3i o = grid.block_first[b] / E;
+      const std::int32_t next =
+          o.z() + 1 < grid.blocks.z() ? grid.slot[grid.page(o.x(), o.y(), o.z() + 1)] : -1;
+      const double* own = grid.velocity[b * Grid::kBlockNodes].data();
+      const double* after = next < 0 ? nullptr : grid.velocity[next * Grid::kBlockNodes].data();
+      float* out = grid.velocity_f.data() + b * kBlockFloats;
+      for (int ij = 0; ij < E * E; ++ij, out += 3 * R) {  // row (i, j): nodes ij E + k
+        for (int c = 0; c < 3 * E; ++c) out[c] = static_cast<float>(own[3 * E * ij + c]);
+        for (int c = 3 * E; c < 3 * R; ++c)
+          out[c] = after ? static_cast<float>(after[3 * E * ij + c - 3 * E]) : 0.0f;
+      }
+    }
+  });
 }
 
 void gather_range(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,

@@ -44,7 +44,7 @@ void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particl
 /// region; `first` a multiple of kGatherAlign), in the lane sets gather makes, so every
 /// particle gets gather's values. With `advect`, its counts are added there and its speed
 /// raised to the range's largest.
-void prepare_gather(const Grid& grid);
+void prepare_gather(const Grid& grid, Kernel kernel);
 /// The part of gather (after prepare_gather) for particles [first, last), on this thread.
 void gather_range(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,
                   std::size_t first, std::size_t last, AdvectStats* advect);
