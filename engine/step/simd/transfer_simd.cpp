@@ -785,12 +785,12 @@ HWY_INLINE void store_gathered(const float (*out)[kLanes], std::size_t q0, std::
 /// Gathers particles [q0, q0 + count), count <= kLanes, one lane each (the last lane's
 /// particle repeated in unused lanes, which are not written back). Their new velocities are
 /// also left in `v` (one row per axis), where advect_batch takes them instead of reloading
-/// the particles' v it has just stored. Long because it is the SIMD
-/// gather's hot kernel: the stencil's weights, node addresses and running sums (about 40
-/// vectors) stay in registers from the stencil to the F and C update; split into functions
-/// they would be passed through memory. Its jobs, in order: the stencil (gather_stencil), F
-/// (load_matrix_lanes), the lanes' distinct cells, node addresses, weights, the stencil sums, C,
-/// the F update, then the stores (store_gathered).
+/// the particles' v it has just stored. Long because it is the SIMD gather's hot kernel: its
+/// cells' masks, the lanes' row offsets and the stencil's sums are vectors shared from one
+/// job to the next; split into functions they would be passed through memory. Its jobs, in
+/// order: the stencil (gather_stencil), the lanes' distinct cells, their rows of velocity_f,
+/// weights, the node values, the stencil sums, C, F (load_matrix_lanes) and its update, then
+/// the stores (store_gathered).
 template <Kernel K, Transfer T>
 void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Particles& p,
                   float (*v)[kLanes]) {
