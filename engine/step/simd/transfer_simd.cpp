@@ -382,7 +382,9 @@ struct ScatterBatch {
 };
 
 /// The scatter's stencil of a batch (base, 1D weights and derivatives per cell) from the
-/// positions xs, in double lanes as make_stencil computes it, each value rounded to float once.
+/// positions xs: the base, the corner offset and fx - base in double lanes as make_stencil
+/// computes them, each rounded to float once, then the weights in float lanes from fx - base
+/// (as the gather takes them).
 template <Kernel K, int N = KernelTraits<K>::kNodes>
 HWY_INLINE void scatter_stencil(const Grid& g, const double (*xs)[kLanes], float (*corner)[kLanes],
                                 std::int32_t (*base)[kLanes], float (*wl)[N][kLanes],
@@ -391,21 +393,17 @@ HWY_INLINE void scatter_stencil(const Grid& g, const double (*xs)[kLanes], float
   const DF d;
   const DI di;
   for (int a = 0; a < 3; ++a) {
-    VD c[kHalves], b[kHalves], w[N][kHalves], dw[N][kHalves];
-    for (std::size_t h = 0; h < kHalves; ++h) {
-      VD wh[N], dwh[N];
-      const VD xd = hn::Load(dd, xs[a] + h * hn::Lanes(dd));
-      lane_weights<K>(dd, stencil_lanes<K>(dd, xd, g, a, c[h], b[h]), wh, dwh);
-      for (int k = 0; k < N; ++k) {
-        w[k][h] = wh[k];
-        dw[k][h] = hn::Mul(dwh[k], hn::Set(dd, g.inv_h[a]));
-      }
-    }
+    VD c[kHalves], b[kHalves], t[kHalves];
+    for (std::size_t h = 0; h < kHalves; ++h)
+      t[h] = stencil_lanes<K>(dd, hn::Load(dd, xs[a] + h * hn::Lanes(dd)), g, a, c[h], b[h]);
     hn::Store(join_lanes(d, c), d, corner[a]);
     hn::Store(join_lanes(di, b), di, base[a]);
+    VF w[N], dw[N];
+    lane_weights<K>(d, join_lanes(d, t), w, dw);
+    const VF s = hn::Set(d, static_cast<float>(g.inv_h[a]));
     for (int k = 0; k < N; ++k) {
-      hn::Store(join_lanes(d, w[k]), d, wl[a][k]);
-      hn::Store(join_lanes(d, dw[k]), d, dwl[a][k]);
+      hn::Store(w[k], d, wl[a][k]);
+      hn::Store(hn::Mul(dw[k], s), d, dwl[a][k]);
     }
   }
 }
