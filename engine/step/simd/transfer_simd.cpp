@@ -840,10 +840,10 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
       g.stencil_rows<N>(Vec3i(base[0][l], base[1][l], base[2][l]), cell_rows[r]);
     }
   // Offset in velocity_f of row (i, j) of each lane's stencil, as Grid::stencil_rows computes
-  // it: the slot of the row's block times kRowBlockFloats, plus the row's offset in the block
-  // and the stencil's z offset there. A stencil spans at most two blocks along x and y (block
-  // b0 or b0 + 1: `up`), so the slots of the four blocks are gathered from the page table once
-  // per batch and chosen per row by blends. A block the lane's stencil does not reach is
+  // it: the slot of the row's block times row_block_floats(N), plus the row's offset in the
+  // block and the stencil's z offset there. A stencil spans at most two blocks along x and y
+  // (block b0 or b0 + 1: `up`), so the slots of the four blocks are gathered from the page
+  // table once per batch and chosen per row by blends. A block the lane's stencil does not reach is
   // clamped into the domain and never chosen. Only for more than kMaxCells cells.
   VI off[2][N], slots[2][2], zoff;
   hn::Mask<DI> up[2][N];
