@@ -39,7 +39,8 @@ void scatter(const Particles& p, const ParticleOrder& order, Transfer transfer, 
 void gather(const Grid& grid, Transfer transfer, Kernel kernel, Real dt, Particles& p,
             AdvectStats* advect = nullptr);
 
-/// gather in parts: prepare_gather fills grid.velocity_f from grid.velocity, then each
+/// gather in parts: prepare_gather fills grid.velocity_f from grid.velocity, in rows sized
+/// for `kernel`'s stencil (Grid::row_nodes), so gather_range must take the same kernel; each
 /// gather_range call gathers particles [first, last) on the calling thread (no parallel
 /// region; `first` a multiple of kGatherAlign), in the lane sets gather makes, so every
 /// particle gets gather's values. With `advect`, its counts are added there and its speed
