@@ -23,6 +23,7 @@
 #include "engine/run/progress.h"
 #include "engine/run/run.h"
 #include "engine/scene/load_scene.h"
+#include "engine/step/simd/transfer_simd.h"
 #include "engine/step/simulation.h"
 #include "engine/step/validate.h"
 #include "engine/tools/bench.h"
@@ -77,7 +78,8 @@ struct Args {
   std::vector<std::string> given;  ///< The options given, in order (to refuse ignored ones).
   std::string cases, csv;
   std::optional<long> particles;
-  std::optional<bool> simd;  ///< mpm bench --simd on|off
+  std::optional<bool> simd;  ///< mpm bench --simd on|off (or an instruction set: on)
+  std::string simd_target;   ///< mpm bench --simd SSE4|AVX2|AVX3: the one to force.
   std::optional<int> frames, threads, fps;
   std::vector<std::string> sets, plugins;
   bool quiet = false, force = false, quick = false, allow_scene_plugins = false;
@@ -123,12 +125,14 @@ constexpr CommandInfo kCommands[] = {
                                  default mesh), as the mesh and vdb formats write them)"},
     {Command::bench, "bench", cmd_bench, false, 1,
      R"(  mpm bench [--cases jello,snow,sparse,two_cubes,machine] [--particles N] [--threads N]
-            [--csv FILE] [--simd on|off]
+            [--csv FILE] [--simd on|off|SSE4|AVX2|AVX3]
                                  time standard cases (median of 3 after a warm-up;
                                  jello, snow, neo_hookean, sand, water: a falling cube of
                                  that material; sparse: jello in a larger grid;
                                  two_cubes: the whole scene, once; machine: peak FLOP
-                                 rate and memory bandwidth; --simd off: the scalar path)
+                                 rate and memory bandwidth; --simd off: the scalar path;
+                                 --simd AVX2: that instruction set's code, where the CPU
+                                 has a wider one)
   mpm bench SCENE.yaml [--frames N] [--set KEY=VALUE ...] [--threads N] [--csv FILE]
                                  time your own scene as mpm run runs it (frames to a
                                  scratch folder): particle-steps/s and time per stage)"},
@@ -221,8 +225,8 @@ Args parse_args(int argc, char** argv) {
       a.particles = parse_count(w, value(), 1000);
     } else if (w == "--simd") {
       const std::string v = value();
-      if (v != "on" && v != "off") usage_error("--simd expects on or off, got '" + v + "'");
-      a.simd = v == "on";
+      a.simd = v != "off";
+      if (v != "on" && v != "off") a.simd_target = v;
     } else if (w == "--tol") {
       a.tols.push_back(value());
     } else if (w == "-o") {
@@ -414,6 +418,12 @@ int cmd_bench(const Args& args) {
   if (args.particles) opt.particles = *args.particles;
   if (args.simd) opt.simd = *args.simd;
   opt.simd_given = args.simd.has_value();
+  if (!args.simd_target.empty() && !mpm::simd::force_target(args.simd_target)) {
+    std::string names;
+    mpm::simd::for_each_target([&](const char* n) { names += std::string(" ") + n; });
+    usage_error("--simd expects on, off or an instruction set this build and CPU run (" +
+                names.substr(1) + "), got '" + args.simd_target + "'");
+  }
   if (!args.cases.empty()) opt.cases = split_list(args.cases);
   if (!args.scene.empty()) {
     if (!args.cases.empty() || args.particles)

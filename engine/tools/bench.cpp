@@ -1,5 +1,8 @@
 #include "engine/tools/bench.h"
 
+#include <omp.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -8,16 +11,14 @@
 #include <sstream>
 #include <stdexcept>
 
-#include <omp.h>
-#include <unistd.h>
-
-#include "engine/tools/child_process.h"
-#include "engine/scene/load_scene.h"
+#include "engine/core/version.h"
 #include "engine/io/output.h"
 #include "engine/io/summary.h"
 #include "engine/run/run.h"
+#include "engine/scene/load_scene.h"
+#include "engine/step/simd/transfer_simd.h"
 #include "engine/step/simulation.h"
-#include "engine/core/version.h"
+#include "engine/tools/child_process.h"
 
 namespace mpm {
 
@@ -253,8 +254,11 @@ std::string format_bench_table(const std::vector<BenchResult>& results) {
                 kStoredPrecision, git_commit());
   s << line;
   if (!results.empty())
-    s << "transfers: " << (results.front().simd ? "SIMD where supported (simulation.simd: true)"
-                                                : "scalar double (simulation.simd: false)")
+    s << "transfers: "
+      << (results.front().simd
+              ? std::string("SIMD where supported (simulation.simd: true), instruction set ") +
+                    (simd::target_name() ? simd::target_name() : "none")
+              : std::string("scalar double (simulation.simd: false)"))
       << "\n";
   std::snprintf(line, sizeof line, "%-9s %10s %10s %10s %8s %7s %14s %10s\n", "case",
                 "particles", "nodes", "stored", "substeps", "threads", "Mparticle-st/s",

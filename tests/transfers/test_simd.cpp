@@ -6,6 +6,7 @@
 #include <cmath>
 #include <numeric>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "engine/step/grid.h"
@@ -223,6 +224,25 @@ void check_gather_agrees(const Grid& g, Transfer tr, Kernel kernel, Real dt, Par
 }
 
 }  // namespace
+
+TEST_CASE("force_target runs each instruction set's code, and refuses one it cannot",
+          "[transfers][simd]") {
+  // mpm bench --simd AVX2 times the AVX2 code on an AVX-512 machine this way.
+  const char* best = simd::target_name();
+  std::vector<std::string> names;
+  simd::for_each_target([&](const char* n) { names.push_back(n); });
+  for (const std::string& n : names) {
+    CHECK(simd::force_target(n));
+    CHECK(simd::target_name() == n);
+  }
+  if (!names.empty()) {
+    CHECK(simd::force_target(""));
+    CHECK(simd::target_name() == best);
+    CHECK(simd::force_target(names.back()));
+  }
+  CHECK_FALSE(simd::force_target("AVX9"));
+  CHECK(simd::target_name() == best);  // the normal choice again
+}
 
 TEST_CASE("SIMD and scalar particle-to-grid give the same grid to float rounding",
           "[transfers][simd]") {

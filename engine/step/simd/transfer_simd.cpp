@@ -1271,8 +1271,19 @@ std::size_t cell_keys(const Particles& p, Kernel kernel, const Grid& grid, const
 }
 
 const char* target_name() {
-  static const char* const name = HWY_DYNAMIC_DISPATCH(TargetImpl)();
-  return name;
+  return HWY_DYNAMIC_DISPATCH(TargetImpl)();
+}
+
+bool force_target(const std::string& name) {
+  hwy::SetSupportedTargetsForTest(0);  // the CPU's own list, whatever was forced before
+  if (name.empty()) return true;
+  for (const std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    if (name != hwy::TargetName(target)) continue;
+    hwy::SetSupportedTargetsForTest(target);
+    if (HWY_DYNAMIC_DISPATCH(TargetImpl)()) return true;
+    hwy::SetSupportedTargetsForTest(0);
+  }
+  return false;
 }
 
 void for_each_target(const std::function<void(const char*)>& f) {

@@ -8,6 +8,7 @@
 
 #include <functional>
 #include <span>
+#include <string>
 
 #include "engine/core/particles.h"
 #include "engine/scene/scene_desc.h"
@@ -65,6 +66,12 @@ std::size_t cell_keys(const Particles& p, Kernel kernel, const Grid& grid, const
 /// Name of the instruction set the dispatch chose on this machine, e.g. "AVX3", or nullptr
 /// if it has none the SIMD path can use (then the scalar path runs).
 const char* target_name();
+
+/// Forces the dispatch to the instruction set `name` (as target_name gives it, e.g. "AVX2")
+/// for the rest of the process, so a machine with AVX-512 also times its AVX2 code (mpm
+/// bench --simd AVX2); "" restores the normal choice. Returns false, with the normal choice
+/// restored, if it is not compiled in, this CPU cannot run it, or the SIMD path cannot use it.
+bool force_target(const std::string& name);
 
 /// Calls f(name) once per instruction set compiled in that this CPU runs and the SIMD path
 /// can use, with the dispatch forced to it (Highway's test hook), then restores the normal
