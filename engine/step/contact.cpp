@@ -5,7 +5,6 @@
 #include <bit>
 #include <cmath>
 #include <limits>
-#include <memory>
 #include <utility>
 
 #include "engine/core/hash.h"
@@ -613,8 +612,9 @@ void gather_stencils(Real dt, const Particles& p, const Grid& g, ContactState& s
   constexpr int N = KernelTraits<K>::kNodes, S = N * N * N;
   const std::size_t nc = st.size();
   const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(nc);
-  // Not zeroed (every contact's stencil is written), as GridSpeed::block.
-  const std::unique_ptr<std::size_t[]> storage_index(new std::size_t[nc * S]);
+  // Every contact's stencil is written: the scratch is only grown, never cleared.
+  st.stencil_storage.resize(nc * S);
+  std::size_t* const storage_index = st.stencil_storage.data();
   std::vector<char> acts(nc, 0);
   st.stencil = S;
   st.weights.resize(nc * S);
@@ -665,7 +665,7 @@ void gather_stencils(Real dt, const Particles& p, const Grid& g, ContactState& s
       acts[c] = sum > 0 && (st.gap[c] <= 0 || closing());
     }
   }
-  keep_acting_contacts(acts, storage_index.get(), g, st);
+  keep_acting_contacts(acts, storage_index, g, st);
 }
 
 /// The stencil entries of the contacts of `st` by node: node i's are contact[first[i]] to
@@ -838,8 +838,11 @@ Members merge_shared_stencils(const std::vector<std::uint32_t>& order, ContactSt
     for (std::size_t c = 0; c < nc; ++c) member[next[m.group[c]]++] = static_cast<std::uint32_t>(c);
   }
   std::vector<Vec3> normal(ng), wall_velocity(ng);
-  std::vector<Real> gap(ng), weights(ng * S);
-  std::vector<std::uint32_t> nodes(ng * S);
+  std::vector<Real> gap(ng);
+  std::vector<Real>& weights = st.spare_weights;  // every entry written below
+  std::vector<std::uint32_t>& nodes = st.spare_nodes;
+  weights.resize(ng * S);
+  nodes.resize(ng * S);
   st.count.resize(ng);
   const std::ptrdiff_t sg = static_cast<std::ptrdiff_t>(ng);
 #pragma omp parallel for schedule(static) if (static_cast<long>(nc) * S >= kParallelMinItems)
@@ -874,8 +877,8 @@ Members merge_shared_stencils(const std::vector<std::uint32_t>& order, ContactSt
   st.normal = std::move(normal);
   st.wall_velocity = std::move(wall_velocity);
   st.gap = std::move(gap);
-  st.weights = std::move(weights);
-  st.nodes = std::move(nodes);
+  std::swap(st.weights, weights);  // the old ones are the next substep's scratch
+  std::swap(st.nodes, nodes);
   return m;
 }
 

@@ -124,6 +124,14 @@ struct ContactState {
   std::vector<std::size_t> storage;     ///< Grid storage index of each compact node (node 0:
                                         ///< none, for stencil nodes without mass).
   std::vector<std::int32_t> compact;    ///< Scratch per grid storage slot, -1 between uses.
+  /// Scratch kept between substeps, so that a solve of many contacts takes no fresh pages (a
+  /// buffer over glibc's mmap threshold, 32 MiB, would be mapped, faulted in and zeroed anew
+  /// every substep): each candidate's stencil nodes as grid storage indices (gather_stencils),
+  /// and the merged stencils' weights and nodes (merge_shared_stencils, swapped with weights
+  /// and nodes).
+  std::vector<std::size_t> stencil_storage;
+  std::vector<Real> spare_weights;         ///< Scratch, see stencil_storage.
+  std::vector<std::uint32_t> spare_nodes;  ///< Scratch, see stencil_storage.
   /// The weights the stress scatter uses, which the ghost weights follow.
   enum class ForceWeights {
     gradient,  ///< The kernel's gradient (PIC, FLIP, APIC).
@@ -134,7 +142,7 @@ struct ContactState {
                                  ///< at rest, m, or -1 (half the spacing); empty: all -1.
                                  ///< Set once at creation; clear() keeps it.
   std::size_t size() const { return particle.size(); }  ///< Number of contacts.
-  /// Drops every contact and node (the scratch `compact` stays).
+  /// Drops every contact and node (the scratch buffers stay).
   void clear();
 };
 
