@@ -179,6 +179,15 @@ struct WallReach {
   std::uint32_t index;  ///< Its index among the scene's planes, then colliders (its patches).
 };
 
+/// Resizes `v` to n entries, reserving a quarter more when it must grow: the stencil buffers
+/// keep their memory from substep to substep, and a contact count that creeps up as a body
+/// settles reallocates (maps and faults in fresh pages) only now and then.
+template <class T>
+void resize_kept(std::vector<T>& v, std::size_t n) {
+  if (n > v.capacity()) v.reserve(n + n / 4);
+  v.resize(n);
+}
+
 /// Copies contact `from`'s per-contact fields (not its stencil) over contact `to`'s.
 void copy_contact(ContactState& st, std::size_t from, std::size_t to) {
   st.particle[to] = st.particle[from];
@@ -504,7 +513,7 @@ void keep_acting_contacts(const std::vector<char>& acts, const std::size_t* stor
   const int S = st.stencil;
   if (st.compact.size() < g.mass.size()) st.compact.resize(g.mass.size(), -1);
   st.storage.assign(1, kNoNode);  // compact node 0: none, weight 0, no mass
-  st.nodes.resize(st.weights.size());
+  resize_kept(st.nodes, st.weights.size());
   std::size_t kept = 0;
   const std::size_t* last = nullptr;  // the last kept contact's storage indices
   for (std::size_t c = 0; c < st.size(); ++c) {
@@ -613,11 +622,11 @@ void gather_stencils(Real dt, const Particles& p, const Grid& g, ContactState& s
   const std::size_t nc = st.size();
   const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(nc);
   // Every contact's stencil is written: the scratch is only grown, never cleared.
-  st.stencil_storage.resize(nc * S);
+  resize_kept(st.stencil_storage, nc * S);
   std::size_t* const storage_index = st.stencil_storage.data();
   std::vector<char> acts(nc, 0);
   st.stencil = S;
-  st.weights.resize(nc * S);
+  resize_kept(st.weights, nc * S);
   // Each object's particle spacing, for the ghost rows.
   std::vector<Real> spacing(p.object_volume0.size());
   for (std::size_t o = 0; o < spacing.size(); ++o) spacing[o] = std::cbrt(p.object_volume0[o]);
@@ -841,8 +850,8 @@ Members merge_shared_stencils(const std::vector<std::uint32_t>& order, ContactSt
   std::vector<Real> gap(ng);
   std::vector<Real>& weights = st.spare_weights;  // every entry written below
   std::vector<std::uint32_t>& nodes = st.spare_nodes;
-  weights.resize(ng * S);
-  nodes.resize(ng * S);
+  resize_kept(weights, ng * S);
+  resize_kept(nodes, ng * S);
   st.count.resize(ng);
   const std::ptrdiff_t sg = static_cast<std::ptrdiff_t>(ng);
 #pragma omp parallel for schedule(static) if (static_cast<long>(nc) * S >= kParallelMinItems)
@@ -877,8 +886,8 @@ Members merge_shared_stencils(const std::vector<std::uint32_t>& order, ContactSt
   st.normal = std::move(normal);
   st.wall_velocity = std::move(wall_velocity);
   st.gap = std::move(gap);
-  std::swap(st.weights, weights);  // the old ones are the next substep's scratch
-  std::swap(st.nodes, nodes);
+  st.weights.assign(weights.begin(), weights.end());  // within their capacity: no new pages
+  st.nodes.assign(nodes.begin(), nodes.end());
   return m;
 }
 

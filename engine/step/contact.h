@@ -127,8 +127,8 @@ struct ContactState {
   /// Scratch kept between substeps, so that a solve of many contacts takes no fresh pages (a
   /// buffer over glibc's mmap threshold, 32 MiB, would be mapped, faulted in and zeroed anew
   /// every substep): each candidate's stencil nodes as grid storage indices (gather_stencils),
-  /// and the merged stencils' weights and nodes (merge_shared_stencils, swapped with weights
-  /// and nodes).
+  /// and the merged stencils' weights and nodes (merge_shared_stencils, copied back into
+  /// weights and nodes).
   std::vector<std::size_t> stencil_storage;
   std::vector<Real> spare_weights;         ///< Scratch, see stencil_storage.
   std::vector<std::uint32_t> spare_nodes;  ///< Scratch, see stencil_storage.
