@@ -848,17 +848,15 @@ Members merge_shared_stencils(const std::vector<std::uint32_t>& order, ContactSt
   }
   std::vector<Vec3> normal(ng), wall_velocity(ng);
   std::vector<Real> gap(ng);
-  std::vector<Real>& weights = st.spare_weights;  // every entry written below
-  std::vector<std::uint32_t>& nodes = st.spare_nodes;
-  resize_kept(weights, ng * S);
-  resize_kept(nodes, ng * S);
+  resize_kept(st.spare_weights, ng * S);  // every entry written below
+  resize_kept(st.spare_nodes, ng * S);
   st.count.resize(ng);
   const std::ptrdiff_t sg = static_cast<std::ptrdiff_t>(ng);
 #pragma omp parallel for schedule(static) if (static_cast<long>(nc) * S >= kParallelMinItems)
   for (std::ptrdiff_t g = 0; g < sg; ++g) {
     Vec3 nsum = Vec3::Zero(), vsum = Vec3::Zero();
     Real least = std::numeric_limits<Real>::max();
-    Real* w = &weights[g * S];
+    Real* w = &st.spare_weights[g * S];
     std::fill(w, w + S, Real(0));
     for (std::uint32_t k = first[g]; k < first[g + 1]; ++k) {
       const std::size_t c = member[k];
@@ -877,7 +875,7 @@ Members merge_shared_stencils(const std::vector<std::uint32_t>& order, ContactSt
     st.count[g] = n;
     for (int t = 0; t < S; ++t) {
       w[t] /= n;
-      nodes[g * S + t] = st.nodes[from(c) * S + t];
+      st.spare_nodes[g * S + t] = st.nodes[from(c) * S + t];
     }
   }
   // In place: a group's leader is never before it.
@@ -886,8 +884,8 @@ Members merge_shared_stencils(const std::vector<std::uint32_t>& order, ContactSt
   st.normal = std::move(normal);
   st.wall_velocity = std::move(wall_velocity);
   st.gap = std::move(gap);
-  st.weights.assign(weights.begin(), weights.end());  // within their capacity: no new pages
-  st.nodes.assign(nodes.begin(), nodes.end());
+  st.weights.assign(st.spare_weights.begin(), st.spare_weights.end());  // no new pages
+  st.nodes.assign(st.spare_nodes.begin(), st.spare_nodes.end());
   return m;
 }
 
