@@ -419,10 +419,12 @@ int cmd_bench(const Args& args) {
   if (args.simd) opt.simd = *args.simd;
   opt.simd_given = args.simd.has_value();
   if (!args.simd_target.empty() && !mpm::simd::force_target(args.simd_target)) {
-    std::string names;
-    mpm::simd::for_each_target([&](const char* n) { names += std::string(" ") + n; });
+    std::string names;  // "" where the CPU has none the SIMD path can use
+    mpm::simd::for_each_target(
+        [&](const char* n) { names += (names.empty() ? "" : " ") + std::string(n); });
     usage_error("--simd expects on, off or an instruction set this build and CPU run (" +
-                names.substr(1) + "), got '" + args.simd_target + "'");
+                (names.empty() ? std::string("none") : names) + "), got '" + args.simd_target +
+                "'");
   }
   if (!args.cases.empty()) opt.cases = split_list(args.cases);
   if (!args.scene.empty()) {
