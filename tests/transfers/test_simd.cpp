@@ -339,11 +339,13 @@ TEST_CASE("SIMD and scalar grid-to-particle give the same v, C and F to float ro
   // cell order as the reorder stage leaves it (about 11 particles per cell here: a batch
   // spans two or three cells, whose node velocities are loaded once per cell), and in cell
   // order with each 32 particles' halves interleaved (lanes alternate between cells, as where
-  // particles cross a cell face between reorders: still loaded once per cell).
+  // particles cross a cell face between reorders: still loaded once per cell), or each 64
+  // particles' quarters (a batch then spans four to eight cells, counted at run time, or
+  // more: gathered).
   for_each_case([&](bool cell_order, Kernel kernel, Transfer tr) {
-    for (const bool interleaved : {false, true}) {
-      if (interleaved && !cell_order) continue;
-      INFO("interleaved " << interleaved);
+    for (const std::uint32_t ways : {1u, 2u, 4u}) {
+      if (ways > 1 && !cell_order) continue;
+      INFO("interleaved " << ways << " ways");
       Particles a = cloud(8);
       Grid g(grid16(), false);
       ParticleOrder ord;
@@ -351,12 +353,13 @@ TEST_CASE("SIMD and scalar grid-to-particle give the same v, C and F to float ro
       particles_to_grid(a, ord, tr, kernel, dt, g, TransferPath::scalar);
       grid_update(g);
       if (cell_order) reorder_as(ord, a);
-      if (interleaved) {
+      if (ways > 1) {
+        const std::uint32_t group = 16 * ways;
         ParticleOrder mixed;
         for (std::uint32_t q = 0; q < a.size(); ++q) {
-          const std::uint32_t first = q / 32 * 32, k = q % 32;
-          const bool whole = first + 32 <= a.size();  // the last, partial 32 stay as they are
-          mixed.order.push_back(whole ? first + (k % 2) * 16 + k / 2 : q);
+          const std::uint32_t first = q / group * group, k = q % group;
+          const bool whole = first + group <= a.size();  // the last, partial group stays
+          mixed.order.push_back(whole ? first + (k % ways) * 16 + k / ways : q);
         }
         reorder_as(mixed, a);
       }

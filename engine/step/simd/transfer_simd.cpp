@@ -808,10 +808,12 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   // together, but between reorders the particles that cross a cell face interleave with those
   // that stay, so lanes are grouped by cell, not by runs of equal neighbours (two cells in
   // alternating lanes are two cells, not sixteen runs). 99 % of jello's batches and about 80 %
-  // of two_cubes' span three or fewer. A batch of four or more (snow blown into dust: about
-  // 1.9 particles a cell) gathers by index: with 8 lanes that was 4 % faster on
-  // snowball_paper's dust than blending up to eight cells (docs/performance.md).
-  constexpr int kMaxCells = 3;
+  // of two_cubes' span three or fewer; those blend with the count of cells known to the
+  // compiler. A batch of more than kMaxCells (half the lanes; snow blown into dust, about 1.9
+  // particles a cell) gathers by index. With 16 lanes (AVX-512), blending up to 8 cells instead
+  // of 3 made two_cubes' gather 17 % faster and snowball_paper's no slower; with 8 lanes the
+  // cap changed nothing measurable (docs/performance.md).
+  constexpr int kMaxCells = std::max<int>(3, kLanes / 2);
   std::size_t cell_lane[kMaxCells] = {};  // a lane of each cell
   hn::Mask<DF> in_cell[kMaxCells];
   int cells = 0;
@@ -888,23 +890,25 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
     }
   }
   // The stencil's node velocities per component, node and lane. With at most kMaxCells cells
-  // (ncells, known to the compiler) each cell's value is broadcast and blended into its lanes;
-  // else gathered lane by lane: (x, y) pairs as one 64-bit value per lane (half the gathers'
-  // elements of two 32-bit gathers), then split into x and y lanes, and z on its own.
+  // each cell's value is broadcast and blended into its lanes; else gathered lane by lane:
+  // (x, y) pairs as one 64-bit value per lane (half the gathers' elements of two 32-bit
+  // gathers), then split into x and y lanes, and z on its own.
   const float* vf = g.velocity_f.data();
   alignas(64) float nv[3][N * N * N][kLanes];
   const auto load_nodes = [&](auto kc) {
-    constexpr int ncells = decltype(kc)::value;  // 0: more than kMaxCells, gathered by index
+    constexpr int ncells = decltype(kc)::value;  // 0: more than three, counted at run time
     for (int i = 0; i < N; ++i)
       for (int j = 0; j < N; ++j) {
         const int n0 = (i * N + j) * N;
-        if constexpr (ncells > 0) {
-          const float* row[ncells];  // each cell's row (i, j)
-          for (int r = 0; r < ncells; ++r) row[r] = vf + cell_rows[r][N * i + j];
+        if (ncells > 0 || few) {
+          // Known to the compiler for one to three cells; four to kMaxCells counted at run time.
+          const int count = ncells > 0 ? ncells : cells;
+          const float* row[kMaxCells] = {};  // each cell's row (i, j)
+          for (int r = 0; r < count; ++r) row[r] = vf + cell_rows[r][N * i + j];
           for (int k = 0; k < N; ++k)
             for (int e = 0; e < 3; ++e) {
               VF v = hn::Set(d, row[0][3 * k + e]);
-              for (int r = 1; r < ncells; ++r)
+              for (int r = 1; r < count; ++r)
                 v = hn::IfThenElse(in_cell[r], hn::Set(d, row[r][3 * k + e]), v);
               hn::Store(v, d, nv[e][n0 + k]);
             }
