@@ -340,8 +340,9 @@ TEST_CASE("SIMD and scalar grid-to-particle give the same v, C and F to float ro
   // spans two or three cells, whose node velocities are loaded once per cell), and in cell
   // order with each 32 particles' halves interleaved (lanes alternate between cells, as where
   // particles cross a cell face between reorders: still loaded once per cell), or each 64
-  // particles' quarters (a batch then spans four to eight cells, counted at run time, or
-  // more: gathered).
+  // particles' quarters (a batch then spans four to nine cells: blended, the count known at
+  // run time, up to half of 16 lanes; gathered by index beyond that, and beyond three cells on
+  // narrower targets).
   for_each_case([&](bool cell_order, Kernel kernel, Transfer tr) {
     for (const std::uint32_t ways : {1u, 2u, 4u}) {
       if (ways > 1 && !cell_order) continue;

@@ -809,11 +809,11 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   // that stay, so lanes are grouped by cell, not by runs of equal neighbours (two cells in
   // alternating lanes are two cells, not sixteen runs). 99 % of jello's batches and about 80 %
   // of two_cubes' span three or fewer; those blend with the count of cells known to the
-  // compiler. A batch of more than kMaxCells (half the lanes; snow blown into dust, about 1.9
-  // particles a cell) gathers by index. With 16 lanes (AVX-512), blending up to 8 cells instead
-  // of 3 made two_cubes' gather 17 % faster and snowball_paper's no slower; with 8 lanes the
-  // cap changed nothing measurable (docs/performance.md).
-  constexpr int kMaxCells = std::max<int>(3, kLanes / 2);
+  // compiler. A batch of more than kMaxCells (snow blown into dust: about 1.9 particles a cell)
+  // gathers by index. With 16 lanes (AVX-512), blending up to 8 cells instead of 3 made
+  // two_cubes' gather 17 % faster and snowball_paper's no slower; with 8 lanes, 3 was best on
+  // the dust (docs/performance.md, thirtieth and thirty-third sessions).
+  constexpr int kMaxCells = kLanes >= 16 ? static_cast<int>(kLanes / 2) : 3;
   std::size_t cell_lane[kMaxCells] = {};  // a lane of each cell
   hn::Mask<DF> in_cell[kMaxCells];
   int cells = 0;
