@@ -1292,12 +1292,10 @@ bool force_target(const std::string& name) {
 
 void for_each_target(const std::function<void(const char*)>& f) {
   struct Restore {  // the normal dispatch again, also when f throws
-    ~Restore() { hwy::SetSupportedTargetsForTest(0); }
+    ~Restore() { force_target(""); }
   } restore;
-  for (const std::int64_t target : hwy::SupportedAndGeneratedTargets()) {
-    hwy::SetSupportedTargetsForTest(target);
-    if (HWY_DYNAMIC_DISPATCH(TargetImpl)()) f(hwy::TargetName(target));
-  }
+  for (const std::int64_t target : hwy::SupportedAndGeneratedTargets())
+    if (force_target(hwy::TargetName(target))) f(hwy::TargetName(target));
 }
 
 }  // namespace mpm::simd
