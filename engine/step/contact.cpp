@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "engine/core/hash.h"
+#include "engine/core/idle_help.h"
 #include "engine/core/radix_sort.h"
 #include "engine/step/domain_quadrature.h"
 
@@ -341,12 +342,17 @@ void scan_planes(const std::vector<Vec3>& x, const std::vector<Vec3>& normal,
       int axis;
       const bool across = n.cwiseAbs().maxCoeff(&axis) == 1;
       Vec3 on_lo = Vec3::Constant(std::numeric_limits<Real>::max()), on_hi = -on_lo;
+      // The coordinate across the wall by a select, not an index: an element written through
+      // memory and the vector read back stalls each particle on the store.
+      Eigen::Array<bool, 3, 1> fixed = Eigen::Array<bool, 3, 1>::Constant(false);
+      if (across) fixed[axis] = true;
+      const Vec3 on_wall = Vec3::Constant(point[w][axis]);
       for (std::ptrdiff_t i = 0; i < m; ++i) {
         if (!(distance[i] < r)) continue;
-        on[i] = xt[i] - distance[i] * n;
-        if (across) on[i][axis] = point[w][axis];
-        on_lo = on_lo.cwiseMin(on[i]);
-        on_hi = on_hi.cwiseMax(on[i]);
+        const Vec3 o = fixed.select(on_wall, xt[i] - distance[i] * n);
+        on[i] = o;
+        on_lo = on_lo.cwiseMin(o);
+        on_hi = on_hi.cwiseMax(o);
       }
       const Real tight = std::min(r, tile_reach(w, on_lo, on_hi));
       for (std::ptrdiff_t i = 0; i < m; ++i)
@@ -948,7 +954,11 @@ struct Chebyshev {
 struct ToNodes {
   Vec3 push = Vec3::Zero();  ///< Change of the normal impulse along the normal, plus a held
                              ///< contact's tangential change, N s.
-  Real share = 0;            ///< Share of the patch's friction capacity, N s.
+  /// Its friction request (ContactSteps::ask) if it rubs, else zero, N s: the nodes add every
+  /// entry's without a branch, and a zero leaves their sums' bits as they were (the sums start
+  /// at +0, which adding a zero of either sign keeps).
+  Vec3 ask = Vec3::Zero();
+  Real share = 0;            ///< Share of the patch's friction capacity if it rubs, else 0, N s.
   bool rubs = false;         ///< Whether it rubs.
 };
 
@@ -1012,17 +1022,25 @@ struct ContactSteps {
   Real take(ContactState& st, Real dt, Real omega, bool par, Real& residual) {
     const std::ptrdiff_t sn = static_cast<std::ptrdiff_t>(st.size());
     const std::ptrdiff_t sets = (sn + kInterleaved - 1) / kInterleaved;
-    Real largest = 0, worst = 0;
-#pragma omp parallel for schedule(static) reduction(max : largest, worst) if (par)
-    for (std::ptrdiff_t set = 0; set < sets; ++set) {
-      const std::ptrdiff_t first = set * kInterleaved;
-      const int m = static_cast<int>(std::min<std::ptrdiff_t>(kInterleaved, sn - first));
-      Vec3 at[kInterleaved];
-      interpolate_velocities(st, first, m, at);
-      for (int j = 0; j < m; ++j) take_one(st, first + j, at[j], dt, omega, largest, worst);
-    }
-    residual = worst;
-    return largest;
+    using Largest = std::array<Real, 2>;  // the largest change or request, the worst violation
+    const Largest out = for_ranges(
+        sets, par, Largest{0, 0},
+        [&](std::ptrdiff_t from, std::ptrdiff_t to) {
+          Real largest = 0, worst = 0;
+          for (std::ptrdiff_t set = from; set < to; ++set) {
+            const std::ptrdiff_t first = set * kInterleaved;
+            const int m = static_cast<int>(std::min<std::ptrdiff_t>(kInterleaved, sn - first));
+            Vec3 at[kInterleaved];
+            interpolate_velocities(st, first, m, at);
+            for (int j = 0; j < m; ++j) take_one(st, first + j, at[j], dt, omega, largest, worst);
+          }
+          return Largest{largest, worst};
+        },
+        [](const Largest& a, const Largest& b) {
+          return Largest{std::max(a[0], b[0]), std::max(a[1], b[1])};
+        });
+    residual = out[1];
+    return out[0];
   }
 
   /// take() at contact c, from the velocity `u` interpolated at its point.
@@ -1046,6 +1064,7 @@ struct ContactSteps {
     dn[c] = ln[c] - st.normal_impulse[c];
     largest = std::max({largest, std::abs(dn[c]), ask[c].norm()});
     to_nodes[c].push = dn[c] * n + (hold ? ask[c] : Vec3::Zero());
+    if (to_nodes[c].rubs) to_nodes[c].ask = ask[c];
     st.normal_impulse[c] = ln[c];
   }
 
@@ -1116,30 +1135,14 @@ struct NodeFriction {
   Real apply(const NodeEntries& by_node, const ContactSteps& steps, bool par, bool moving,
              Real omega, ContactState& st, Real& work) {
     const std::ptrdiff_t nn = static_cast<std::ptrdiff_t>(st.node_velocity.size());
-    Real change = 0;
-#pragma omp parallel for schedule(static) reduction(max : change) if (par)
-    for (std::ptrdiff_t i = 1; i < nn; ++i) {
-      Vec3 step = Vec3::Zero(), trial = Vec3::Zero();
-      Real cap = 0;
-      for (std::uint32_t k = by_node.first[i]; k < by_node.first[i + 1]; ++k) {
-        const std::uint32_t c = by_node.contact[k];
-        const Real w = by_node.weight[k];
-        const ToNodes& from = steps.to_nodes[c];
-        step += w * from.push;
-        if (!from.rubs) continue;
-        trial += w * steps.ask[c];
-        cap += w * from.share;
-      }
-      const Vec3 f =
-          within(cap, omega * (within(cap, friction[i] + trial) - earlier[i]) + earlier[i]);
-      earlier[i] = friction[i];
-      const Vec3 df = f - friction[i];
-      friction[i] = f;
-      if (moving && rubbing[i] > 0) node_work[i] = df.dot(wall_v[i]) / rubbing[i];
-      const Vec3 dv = (step + df) * st.node_inv_mass[i];
-      st.node_velocity[i] += dv;
-      change = std::max(change, dv.squaredNorm());
-    }
+    const auto nodes = [&](std::ptrdiff_t from, std::ptrdiff_t to) {
+      Real change = 0;  // nodes from + 1 to `to` (node 0 is none)
+      for (std::ptrdiff_t i = from + 1; i <= to; ++i)
+        change = std::max(change, apply_at(i, by_node, steps, moving, omega, st));
+      return change;
+    };
+    const Real change =
+        for_ranges(nn - 1, par, Real(0), nodes, [](Real a, Real b) { return std::max(a, b); });
     if (moving) {
       Real sum = 0;
       for (std::ptrdiff_t i = 1; i < nn; ++i)
@@ -1147,6 +1150,30 @@ struct NodeFriction {
       work += sum;
     }
     return change;
+  }
+
+  /// apply() at node i: returns its squared velocity change.
+  Real apply_at(std::ptrdiff_t i, const NodeEntries& by_node, const ContactSteps& steps,
+                bool moving, Real omega, ContactState& st) {
+    Vec3 step = Vec3::Zero(), trial = Vec3::Zero();
+    Real cap = 0;
+    for (std::uint32_t k = by_node.first[i]; k < by_node.first[i + 1]; ++k) {
+      const std::uint32_t c = by_node.contact[k];
+      const Real w = by_node.weight[k];
+      const ToNodes& from = steps.to_nodes[c];
+      step += w * from.push;
+      trial += w * from.ask;
+      cap += w * from.share;
+    }
+    const Vec3 f =
+        within(cap, omega * (within(cap, friction[i] + trial) - earlier[i]) + earlier[i]);
+    earlier[i] = friction[i];
+    const Vec3 df = f - friction[i];
+    friction[i] = f;
+    if (moving && rubbing[i] > 0) node_work[i] = df.dot(wall_v[i]) / rubbing[i];
+    const Vec3 dv = (step + df) * st.node_inv_mass[i];
+    st.node_velocity[i] += dv;
+    return dv.squaredNorm();
   }
 };
 

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <exception>
 
+#include "engine/core/idle_help.h"
 #include "engine/core/shares.h"
 #include "engine/step/simd/transfer_simd.h"
 
@@ -41,6 +42,7 @@ void gather_chunks(const std::vector<std::uint32_t>& chunks, const std::function
   // last ones: the chunks of thread 0's share that it has not reached when the contact ends go
   // to the others.
   Shares shares(chunks.size(), omp_get_max_threads(), 4);
+  IdleTeam::reset();
 #pragma omp parallel if (par)
   {
     if (first && omp_get_thread_num() == 0) {
@@ -59,7 +61,10 @@ void gather_chunks(const std::vector<std::uint32_t>& chunks, const std::function
       }
 #pragma omp critical(mpm_split_gather)
     combine(mine, split.advect);
+    // Done: `first`'s loops may give this thread a part (idle_help.h) until the team ends.
+    IdleTeam::arrive();
   }
+  IdleTeam::reset();
   if (error) std::rethrow_exception(error);
 }
 
