@@ -319,11 +319,21 @@ void scan_planes(const std::vector<Vec3>& x, const std::vector<Vec3>& normal,
   for (std::ptrdiff_t tile = first; tile < last; tile += kTile) {
     const std::ptrdiff_t m = std::min(kTile, last - tile);
     const Vec3* xt = &x[tile];
-    Vec3 lo = xt[0], hi = xt[0];
-    for (std::ptrdiff_t i = 1; i < m; ++i) {
-      lo = lo.cwiseMin(xt[i]);
-      hi = hi.cwiseMax(xt[i]);
+    // Four bounds side by side: one is a chain of dependent minima and maxima, four overlap
+    // (the same box in any order).
+    Vec3 lo4[4] = {xt[0], xt[0], xt[0], xt[0]}, hi4[4] = {xt[0], xt[0], xt[0], xt[0]};
+    std::ptrdiff_t i = 1;
+    for (; i + 4 <= m; i += 4)
+      for (int k = 0; k < 4; ++k) {
+        lo4[k] = lo4[k].cwiseMin(xt[i + k]);
+        hi4[k] = hi4[k].cwiseMax(xt[i + k]);
+      }
+    for (; i < m; ++i) {
+      lo4[0] = lo4[0].cwiseMin(xt[i]);
+      hi4[0] = hi4[0].cwiseMax(xt[i]);
     }
+    const Vec3 lo = lo4[0].cwiseMin(lo4[1]).cwiseMin(lo4[2].cwiseMin(lo4[3]));
+    const Vec3 hi = hi4[0].cwiseMax(hi4[1]).cwiseMax(hi4[2].cwiseMax(hi4[3]));
     for (std::size_t w = 0; w < normal.size(); ++w) {
       const Vec3 n = normal[w];
       const Real c = n.dot(point[w]), r = reach[w];
@@ -342,17 +352,33 @@ void scan_planes(const std::vector<Vec3>& x, const std::vector<Vec3>& normal,
       int axis;
       const bool across = n.cwiseAbs().maxCoeff(&axis) == 1;
       Vec3 on_lo = Vec3::Constant(std::numeric_limits<Real>::max()), on_hi = -on_lo;
-      // The coordinate across the wall by a select, not an index: an element written through
-      // memory and the vector read back stalls each particle on the store.
-      Eigen::Array<bool, 3, 1> fixed = Eigen::Array<bool, 3, 1>::Constant(false);
-      if (across) fixed[axis] = true;
-      const Vec3 on_wall = Vec3::Constant(point[w][axis]);
-      for (std::ptrdiff_t i = 0; i < m; ++i) {
-        if (!(distance[i] < r)) continue;
-        const Vec3 o = fixed.select(on_wall, xt[i] - distance[i] * n);
-        on[i] = o;
-        on_lo = on_lo.cwiseMin(o);
-        on_hi = on_hi.cwiseMax(o);
+      // The axis a compile-time constant (A, or -1 for none) and the point made from scalars:
+      // an element set in a vector goes through memory, and reading the vector back stalls on
+      // the store.
+      const auto project = [&]<int A>() {
+        const Real at = A >= 0 ? point[w][std::max(A, 0)] : 0;
+        for (std::ptrdiff_t i = 0; i < m; ++i) {
+          if (!(distance[i] < r)) continue;
+          const Real d = distance[i];
+          const Vec3 o(A == 0 ? at : xt[i].x() - d * n.x(), A == 1 ? at : xt[i].y() - d * n.y(),
+                       A == 2 ? at : xt[i].z() - d * n.z());
+          on[i] = o;
+          on_lo = on_lo.cwiseMin(o);
+          on_hi = on_hi.cwiseMax(o);
+        }
+      };
+      switch (across ? axis : -1) {
+        case 0:
+          project.template operator()<0>();
+          break;
+        case 1:
+          project.template operator()<1>();
+          break;
+        case 2:
+          project.template operator()<2>();
+          break;
+        default:
+          project.template operator()<-1>();
       }
       const Real tight = std::min(r, tile_reach(w, on_lo, on_hi));
       for (std::ptrdiff_t i = 0; i < m; ++i)
