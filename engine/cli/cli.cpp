@@ -522,10 +522,25 @@ BuiltRun build_run(const Args& args, mpm::MaterialRegistry& registry) {
       scene.output.formats.push_back(*f);
     }
   }
-  b.sim = mpm::Simulation::create(scene, registry);
   out = !args.resume.empty() ? std::filesystem::path(args.resume)
         : args.out.empty()   ? scene.output.directory
                              : std::filesystem::path(args.out);
+  // The output folder's problems as the key or option that named it.
+  const auto folder_error = [&](const std::exception& e) {
+    if (!args.out.empty()) return mpm::SceneError({"--out"}, "", e.what());
+    return mpm::SceneError(scene.output.loc, "output.directory", e.what());
+  };
+  const bool writes_run =
+      args.command == Command::run && args.resume.empty() && mpm::parallel::rank() == 0;
+  // Refused before the build (sampling a large scene takes minutes), emptied after it.
+  if (writes_run) {
+    try {
+      mpm::check_output_directory(out, args.force);
+    } catch (const std::exception& e) {
+      throw folder_error(e);
+    }
+  }
+  b.sim = mpm::Simulation::create(scene, registry);
   if (!args.resume.empty()) {
     try {
       b.resumed_frame = mpm::restore_checkpoint(out / "checkpoint.h5", *b.sim);
@@ -538,12 +553,11 @@ BuiltRun build_run(const Args& args, mpm::MaterialRegistry& registry) {
     if (std::filesystem::exists(args.output_file) && !args.force)
       throw mpm::SceneError(
           {"-o"}, "", "'" + args.output_file + "' exists; give --force to replace this golden");
-  } else if (args.command == Command::run && mpm::parallel::rank() == 0) {
+  } else if (writes_run) {
     try {
       mpm::prepare_output_directory(out, args.force);
     } catch (const std::exception& e) {
-      if (!args.out.empty()) throw mpm::SceneError({"--out"}, "", e.what());
-      throw mpm::SceneError(scene.output.loc, "output.directory", e.what());
+      throw folder_error(e);
     }
   }
   return b;

@@ -177,15 +177,14 @@ FrameData read_frame_hdf5(const std::filesystem::path& file) {
   return d;
 }
 
-void prepare_output_directory(const std::filesystem::path& dir, bool force) {
-  namespace fs = std::filesystem;
+namespace {
+
+/// The frames and report of an earlier run in `dir` (none if it does not exist); throws
+/// (std::runtime_error naming the folder) if there are any and not `force`.
+std::vector<std::filesystem::path> earlier_results(const std::filesystem::path& dir, bool force) {
   std::error_code ec;
-  fs::create_directories(dir, ec);
-  if (ec || !fs::is_directory(dir))
-    throw std::runtime_error("cannot create output folder '" + dir.string() + "'" +
-                             (ec ? ": " + ec.message() : ""));
-  std::vector<fs::path> old;
-  for (const auto& e : fs::directory_iterator(dir, ec)) {
+  std::vector<std::filesystem::path> old;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
     const std::string name = e.path().filename().string();
     const bool frame =
         name.starts_with("frame_") && (name.ends_with(".h5") || name.ends_with(".h5.tmp"));
@@ -198,7 +197,23 @@ void prepare_output_directory(const std::filesystem::path& dir, bool force) {
                              std::to_string(old.size()) + " files, e.g. " +
                              old.front().filename().string() +
                              "); use --force to replace them, or --out to write elsewhere");
-  for (const fs::path& f : old) fs::remove(f, ec);
+  return old;
+}
+
+}  // namespace
+
+void check_output_directory(const std::filesystem::path& dir, bool force) {
+  earlier_results(dir, force);
+}
+
+void prepare_output_directory(const std::filesystem::path& dir, bool force) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir))
+    throw std::runtime_error("cannot create output folder '" + dir.string() + "'" +
+                             (ec ? ": " + ec.message() : ""));
+  for (const fs::path& f : earlier_results(dir, force)) fs::remove(f, ec);
   const fs::path probe = dir / ".mpm_write_test";
   {
     std::ofstream out(probe);

@@ -62,6 +62,12 @@ std::filesystem::path frame_path(const std::filesystem::path& dir, int frame);
 /// `force`, which deletes them first.
 void prepare_output_directory(const std::filesystem::path& dir, bool force);
 
+/// prepare_output_directory's refusal alone, changing nothing: throws if `dir` holds frames or
+/// a report and not `force`. `mpm run` asks it before building the scene, so that a build of
+/// minutes is not spent on a folder it may not write, and prepares the folder after it, so
+/// that a scene that fails to build leaves an earlier run's results in place.
+void check_output_directory(const std::filesystem::path& dir, bool force);
+
 /// Writes the state a run needs to continue bit for bit (x, v, F, C, material state, time,
 /// substeps, frame) in double precision to `file` (temporary name, then rename).
 void write_checkpoint(const std::filesystem::path& file, const Simulation& sim, int frame);

@@ -301,6 +301,9 @@ TEST_CASE("bad command lines and overrides exit with code 2", "[scene]") {
     std::vector<std::string> words;
   };
   std::ofstream(dir / "old.summary.yaml") << "frames: []\n";  // a golden already there
+  const std::filesystem::path ran = dir / "ran";              // an earlier run's output
+  std::filesystem::create_directories(ran);
+  std::ofstream(ran / "frame_00000.h5") << "old";
   const std::vector<Cli> cases = {
       {"", {"no command"}},
       {"fly " + scene, {"unknown command 'fly'"}},
@@ -328,6 +331,12 @@ TEST_CASE("bad command lines and overrides exit with code 2", "[scene]") {
       {"compare " + scene + " " + scene + " --set a=1", {"'mpm compare' does not take --set"}},
       {"validate /nonexistent/scene.yaml", {"/nonexistent/scene.yaml", "no such file"}},
       {"run " + scene + " --out /proc/forbidden", {"--out", "cannot create output folder"}},
+      {"run " + scene + " --out " + ran.string(), {"--out", "already holds results", "--force"}},
+      // Refused before the build: an object that samples nothing fails only in the build.
+      {"run " + scene + " --out " + ran.string() + " --set objects[0].scale=0.001",
+       {"--out", "already holds results"}},
+      {"run " + scene + " --out " + ran.string() + " --force --set objects[0].scale=0.001",
+       {"samples zero particles"}},
       {"study --quick", {"'mpm study' needs -o DIR"}},
       {"bench --cases jello --simd AVX9", {"--simd expects on, off or an instruction set", "AVX9"}},
       {"study --cases h_convergance -o " + (dir / "study").string(),
@@ -340,6 +349,8 @@ TEST_CASE("bad command lines and overrides exit with code 2", "[scene]") {
     CHECK(code == 2);
     for (const std::string& w : c.words) CHECK(message.find(w) != std::string::npos);
   }
+  // A scene that fails to build, even with --force, leaves the earlier run's results.
+  CHECK(std::filesystem::exists(ran / "frame_00000.h5"));
 }
 
 TEST_CASE("overrides change the scene like the file would", "[scene]") {
