@@ -61,7 +61,11 @@ void mark_blocks(const std::pair<Vec3i, Vec3i>& blocks, Grid& grid) {
 /// `order` each cell's particles by index, cells in key order, and marks the blocks of every
 /// occupied cell's stencil. In parallel: each thread keys and counts the cells of its own
 /// contiguous chunk of particles, and thread t's particles of cell c go after those of the
-/// threads before it, so `order` is the serial sort's for any thread count.
+/// threads before it, so `order` is the serial sort's for any thread count. Each thread's
+/// counts cover only the cells from its least key to its greatest: the particles lie in cell
+/// order since the last reorder, so a chunk's cells are about its share of the box, and the
+/// passes over the counts divide among the threads instead of each thread passing over the
+/// whole box.
 template <Kernel K, class KeysOf>
 void counting_sort(std::size_t cells, KeysOf&& keys_of, int reach, ParticleOrder& ord, Grid& grid) {
   const std::size_t n = ord.order.size();
@@ -79,29 +83,42 @@ void counting_sort(std::size_t cells, KeysOf&& keys_of, int reach, ParticleOrder
   // to the system less readily (jello 4M's peak then varied between 148 and 160 B/particle).
   at.resize(static_cast<std::size_t>(threads) * cells);
   std::vector<std::uint32_t> range_count(threads);
+  // Per thread, its least key and one past its greatest (its counts' window).
+  std::vector<std::size_t> low(threads), high(threads);
 #pragma omp parallel num_threads(threads) if (n >= kParallelMinItems)
   {
     const std::size_t team = static_cast<std::size_t>(omp_get_num_threads());
     const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
     const std::size_t first = n * t / team, last = n * (t + 1) / team;
     std::uint32_t* mine = at.data() + t * cells;
-    std::fill(mine, mine + cells, 0u);
     keys_of(first, last);
+    std::uint32_t least = ~0u, greatest = 0;
+    for (std::size_t i = first; i < last; ++i) {
+      least = std::min(least, keys[i]);
+      greatest = std::max(greatest, keys[i]);
+    }
+    low[t] = first < last ? least : 0;
+    high[t] = first < last ? std::size_t{greatest} + 1 : 0;
+    std::fill(mine + low[t], mine + high[t], 0u);
     for (std::size_t i = first; i < last; ++i) ++mine[keys[i]];
     // at[t][c] becomes where thread t's first particle of cell c goes; start[c] is where cell
-    // c starts: an exclusive sum over the cells, and within a cell over the threads, each
-    // thread summing its own range of cells, then starting its range after the ones before.
+    // c starts: an exclusive sum over the cells, and within a cell over the threads whose
+    // windows hold it, each thread summing its own range of cells, then starting its range
+    // after the ones before.
     const std::size_t c0 = cells * t / team, c1 = cells * (t + 1) / team;
 #pragma omp barrier
+    const auto counts = [&](std::size_t u, std::size_t c) { return c >= low[u] && c < high[u]; };
     std::uint32_t end = 0;
     for (std::size_t c = c0; c < c1; ++c)
-      for (std::size_t u = 0; u < team; ++u) end += at[u * cells + c];
+      for (std::size_t u = 0; u < team; ++u)
+        if (counts(u, c)) end += at[u * cells + c];
     range_count[t] = end;
 #pragma omp barrier
     end = 0;
     for (std::size_t u = 0; u < t; ++u) end += range_count[u];
     for (std::size_t c = c0; c < c1; ++c) {
-      for (std::size_t u = 0; u < team; ++u) end += std::exchange(at[u * cells + c], end);
+      for (std::size_t u = 0; u < team; ++u)
+        if (counts(u, c)) end += std::exchange(at[u * cells + c], end);
       start[c + 1] = end;
     }
 #pragma omp barrier

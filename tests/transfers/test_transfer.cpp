@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <catch2/catch.hpp>
+#include <numeric>
 #include <random>
 #include <stdexcept>
 #include <tuple>
@@ -371,6 +372,45 @@ TEST_CASE("Shares hands out every item once, each share to its owner first", "[t
       std::size_t misplaced = 0;  // the owner's items after another thread's, or the reverse
       for (std::size_t i = lo; i < hi; ++i) misplaced += (i < next) != (owner[i] == s);
       CHECK(misplaced == 0);
+    }
+  }
+  omp_set_num_threads(threads);
+}
+
+TEST_CASE("The counting sort is the stable sort by cell on any team, in cell order or not",
+          "[transfers]") {
+  // A dense box (at most two cells per particle), enough particles for a team: shuffled, each
+  // thread's keys span the box; in cell order (as after the reorder stage), a part of it.
+  Particles p = random_cloud(30000, false, 7);
+  const int threads = omp_get_max_threads();
+  for (bool cell_order : {false, true}) {
+    INFO("cell order " << cell_order);
+    if (cell_order) {
+      Grid g(unit_grid(16), false);
+      ParticleOrder ord;
+      sort_particles(p, Kernel::quadratic, g, ord);
+      std::vector<Vec3> x(p.size());
+      for (std::size_t i = 0; i < x.size(); ++i) x[i] = p.x[ord.order[i]];
+      p.x = x;
+    }
+    for (int team : {1, 2, 3}) {
+      INFO("threads " << team);
+      omp_set_num_threads(team);
+      Grid g(unit_grid(16), false);
+      ParticleOrder ord;
+      sort_particles(p, Kernel::quadratic, g, ord);
+      REQUIRE(ord.counts.size() > 1);  // the counting sort's offsets: it ran
+      std::vector<std::uint32_t> want(p.size());
+      std::iota(want.begin(), want.end(), 0u);
+      std::stable_sort(want.begin(), want.end(),
+                       [&](std::uint32_t a, std::uint32_t b) { return ord.keys[a] < ord.keys[b]; });
+      CHECK(ord.order == want);
+      std::size_t wrong = 0;  // cell c's run starts after every particle of a smaller key
+      for (std::size_t c = 0; c + 1 < ord.counts.size(); ++c)
+        wrong += ord.counts[c] !=
+                 static_cast<std::uint32_t>(std::count_if(ord.keys.begin(), ord.keys.end(),
+                                                          [&](std::uint32_t k) { return k < c; }));
+      CHECK(wrong == 0);
     }
   }
   omp_set_num_threads(threads);
