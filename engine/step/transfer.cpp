@@ -107,18 +107,18 @@ void counting_sort(std::size_t cells, KeysOf&& keys_of, int reach, ParticleOrder
     // after the ones before.
     const std::size_t c0 = cells * t / team, c1 = cells * (t + 1) / team;
 #pragma omp barrier
-    const auto counts = [&](std::size_t u, std::size_t c) { return c >= low[u] && c < high[u]; };
+    const auto in_window = [&](std::size_t u, std::size_t c) { return c >= low[u] && c < high[u]; };
     std::uint32_t end = 0;
     for (std::size_t c = c0; c < c1; ++c)
       for (std::size_t u = 0; u < team; ++u)
-        if (counts(u, c)) end += at[u * cells + c];
+        if (in_window(u, c)) end += at[u * cells + c];
     range_count[t] = end;
 #pragma omp barrier
     end = 0;
     for (std::size_t u = 0; u < t; ++u) end += range_count[u];
     for (std::size_t c = c0; c < c1; ++c) {
       for (std::size_t u = 0; u < team; ++u)
-        if (counts(u, c)) end += std::exchange(at[u * cells + c], end);
+        if (in_window(u, c)) end += std::exchange(at[u * cells + c], end);
       start[c + 1] = end;
     }
 #pragma omp barrier

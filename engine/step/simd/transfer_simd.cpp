@@ -896,7 +896,9 @@ void gather_batch(const Grid& g, Real dt, std::size_t q0, std::size_t count, Par
   const float* vf = g.velocity_f.data();
   alignas(64) float nv[3][N * N * N][kLanes];
   const auto load_nodes = [&](auto kc) {
-    constexpr int ncells = decltype(kc)::value;  // 0: more than three, counted at run time
+    // 1 to 3: that many cells; 0: more, blended with the count read at run time up to
+    // kMaxCells (`few`), else gathered by index.
+    constexpr int ncells = decltype(kc)::value;
     for (int i = 0; i < N; ++i)
       for (int j = 0; j < N; ++j) {
         const int n0 = (i * N + j) * N;
